@@ -1,0 +1,34 @@
+# Every target sets itself up: the first call creates .venv and installs cosim with its pinned
+# dependencies (SUMO, MuJoCo ... all from PyPI wheels); later calls reuse it.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: test test-fast experiment bench lint clean
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "cosim needs Python >= 3.11")'
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	touch $@
+
+test: $(STAMP)
+	$(PY) -m pytest -q -ra
+
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -ra -m 'not slow'
+
+experiment: $(STAMP)
+	$(VENV)/bin/cosim experiment configs/experiment.yaml
+
+bench: $(STAMP)
+	$(PY) -m bench.run_all
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check cosim tests bench
+	$(VENV)/bin/ruff format --check cosim tests bench
+
+clean:
+	rm -rf $(VENV) .cache results .pytest_cache

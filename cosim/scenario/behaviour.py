@@ -1,0 +1,91 @@
+"""SCV behaviour of the paper (IV.B) mapped onto SUMO vehicle types and junction-model parameters.
+
+| paper rule | SUMO mapping | where SUMO differs |
+|---|---|---|
+| red light: stop 6 m before the junction | signalised approaches get ``endOffset`` = 6 m (stop line moved back) | none for SCVs; the ego's driver model reads the same stop line |
+| stop sign: halt (>= 2 frames), go if nobody approaches within 200 m | junction type ``priority_stop`` / ``allway_stop``; ``jmStoplineGap``; ``jmTimegapMinor`` = 200 m / reference major-road speed | SUMO's gap acceptance is time-based, so "200 m" holds for foes at the reference speed |
+| give-way: slow to 5 km/h, stop if a vehicle approaches within 200 m | the give-way connections get a 5 km/h passage speed, so cars arrive at the line at 5 km/h; same gap rule | the 5 km/h also applies while crossing the junction |
+| keep a 2-s gap to the vehicle ahead | Krauss ``tau`` = 2 s | Krauss keeps *at least* tau; the paper cut speed by 80 % instead |
+| slow down in curves | netconvert ``--junctions.limit-turn-speed 5.5`` (lateral accel. on junction turns) | curves inside an edge do not lower the speed in SUMO |
+| per-vehicle max accel / decel, mass, friction | a vTypeDistribution of ``n_vtypes`` types sampled from truncated normals | SUMO has no tyre friction: decel <= mu*g is enforced when sampling |
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+G = 9.81  # [m/s^2]
+
+
+@dataclass(frozen=True)
+class Dist:
+    """A truncated normal distribution (mean, sd) clipped to [low, high]."""
+
+    mean: float
+    sd: float
+    low: float
+    high: float
+
+    def __post_init__(self):
+        if not self.low <= self.mean <= self.high or self.sd < 0:
+            raise ValueError(f"distribution needs low <= mean <= high and sd >= 0, got {self}")
+
+    def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        return np.clip(rng.normal(self.mean, self.sd, n), self.low, self.high)
+
+
+@dataclass(frozen=True)
+class ScvBehaviour:
+    time_gap_s: float = 2.0  # desired time gap to the leader (paper: 2 s) [s]
+    red_light_stop_gap_m: float = 6.0  # SCVs stop this far before the junction at red [m]
+    stop_sign_clear_distance_m: float = 200.0  # go only if no foe is within this distance [m]
+    reference_major_speed_mps: float = 13.89  # converts the clear distance into SUMO's time gap [m/s]
+    give_way_approach_speed_kmh: float = 5.0  # [km/h]
+    stop_sign_wait_s: float = 1.0  # minimum standstill at a stop sign (paper: >= 2 frames) [s]
+    accel_mps2: Dist = Dist(2.6, 0.4, 1.5, 3.5)  # max acceleration [m/s^2]
+    decel_mps2: Dist = Dist(4.5, 0.6, 3.0, 6.5)  # comfortable max deceleration [m/s^2]
+    mass_kg: Dist = Dist(1400.0, 250.0, 900.0, 2500.0)  # [kg] (SUMO uses it for energy/emissions)
+    friction: Dist = Dist(0.9, 0.08, 0.6, 1.0)  # tyre-road friction coefficient mu [-]
+    speed_factor: Dist = Dist(1.0, 0.1, 0.8, 1.2)  # multiplier on the speed limit [-]
+    sigma: float = 0.5  # Krauss driver imperfection [0..1]
+    min_gap_m: float = 2.5  # standstill gap [m]
+    n_vtypes: int = 20  # types in the distribution (per-vehicle variety)
+
+    def __post_init__(self):
+        if self.time_gap_s <= 0:
+            raise ValueError("time_gap_s must be > 0")
+        if self.red_light_stop_gap_m < 0 or self.stop_sign_clear_distance_m < 0:
+            raise ValueError("distances must be >= 0")
+        if not 0 < self.give_way_approach_speed_kmh <= 50:
+            raise ValueError("give_way_approach_speed_kmh must be in (0, 50]")
+        if not 0 <= self.sigma <= 1:
+            raise ValueError("sigma must be in [0, 1]")
+        if self.n_vtypes < 1:
+            raise ValueError("n_vtypes must be >= 1")
+
+    @property
+    def minor_time_gap_s(self) -> float:
+        return self.stop_sign_clear_distance_m / self.reference_major_speed_mps
+
+    def vtype_distribution_xml(self, rng: np.random.Generator, dist_id: str = "scv") -> str:
+        n = self.n_vtypes
+        accel = self.accel_mps2.sample(rng, n)
+        mu = self.friction.sample(rng, n)
+        decel = np.minimum(self.decel_mps2.sample(rng, n), mu * G)  # cannot brake harder than the tyres allow
+        mass = self.mass_kg.sample(rng, n)
+        speed_factor = self.speed_factor.sample(rng, n)
+        lines = [f'    <vTypeDistribution id="{dist_id}">']
+        for i in range(n):
+            lines.append(
+                f'        <vType id="{dist_id}_{i}" vClass="passenger" probability="1" carFollowModel="Krauss" '
+                f'tau="{self.time_gap_s:.3f}" sigma="{self.sigma:.3f}" minGap="{self.min_gap_m:.2f}" '
+                f'accel="{accel[i]:.3f}" decel="{decel[i]:.3f}" emergencyDecel="{max(decel[i], mu[i] * G):.3f}" '
+                f'mass="{mass[i]:.1f}" speedFactor="{speed_factor[i]:.3f}" '
+                f'jmTimegapMinor="{self.minor_time_gap_s:.2f}" jmStoplineGap="1.0" '
+                f'jmStopSignWait="{self.stop_sign_wait_s:.2f}">'
+                f'<param key="friction" value="{mu[i]:.3f}"/></vType>'
+            )
+        lines.append("    </vTypeDistribution>")
+        return "\n".join(lines)

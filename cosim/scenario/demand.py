@@ -1,0 +1,143 @@
+"""Traffic demand (paper V.A): SCVs start only on primary, secondary, tertiary, unclassified, motorway and
+residential edges and drive to a random reachable destination along an A* route.
+
+Density presets are network-wide averages of vehicles present per lane-km (``DENSITY_PRESETS``). The run
+starts with that many vehicles already spread over the network (random positions on their origin edges)
+and keeps it by Poisson arrivals at rate N / mean trip time until ``horizon_s``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cosim.errors import CosimError
+from cosim.scenario.behaviour import ScvBehaviour
+from cosim.scenario.osm import SPAWN_HIGHWAYS
+from cosim.scenario.routetable import RouteTable
+
+# vehicles per lane-km present on average. For scale: a free-flowing urban lane carries ~10-20 veh/km,
+# jam density is ~130-150; city-wide averages are far lower because side streets are nearly empty.
+DENSITY_PRESETS = {"low": 2.0, "medium": 5.0, "high": 10.0}
+DENSITY_NAMES = tuple(DENSITY_PRESETS)
+MEAN_SPEED_FRACTION = 0.6  # urban trips average ~60 % of the speed limit (signals, junctions)
+
+
+@dataclass(frozen=True)
+class DemandParams:
+    density: str = "medium"  # a preset name, see DENSITY_PRESETS
+    vehicles_per_lane_km: float | None = None  # overrides the preset when given
+    horizon_s: float = 3600.0  # vehicles keep arriving until this time [s]
+
+    def __post_init__(self):
+        if self.density not in DENSITY_PRESETS:
+            raise ValueError(f"unknown density {self.density!r} (known: {', '.join(DENSITY_NAMES)})")
+        if self.vehicles_per_lane_km is not None and not 0 < self.vehicles_per_lane_km <= 150:
+            raise ValueError("vehicles_per_lane_km must be in (0, 150] (150 is jam density)")
+        if self.horizon_s <= 0:
+            raise ValueError("horizon_s must be > 0")
+
+    @property
+    def per_lane_km(self) -> float:
+        return self.vehicles_per_lane_km if self.vehicles_per_lane_km is not None else DENSITY_PRESETS[self.density]
+
+
+def drivable_component(net) -> list:
+    """Edges of the largest strongly connected part of the car network (every pair is routable)."""
+    edges = [e for e in net.getEdges() if e.getFunction() != "internal" and e.allows("passenger")]
+    if not edges:
+        raise CosimError("the network has no edge open to cars")
+    seeds = sorted(edges, key=lambda e: (-e.getPriority(), -e.getLength(), e.getID()))[:5]
+    best: set = set()
+    for seed in seeds:
+        if seed in best:
+            continue
+        fwd = set(net.getReachable(seed, vclass="passenger"))
+        bwd = set(net.getReachable(seed, vclass="passenger", useIncoming=True))
+        comp = (fwd & bwd) | {seed}
+        if len(comp) > len(best):
+            best = comp
+    return sorted(best, key=lambda e: e.getID())
+
+
+def _lanes_for_cars(edge) -> int:
+    return sum(1 for lane in edge.getLanes() if lane.allows("passenger"))
+
+
+def is_spawn_edge(edge) -> bool:
+    etype = edge.getType() or ""
+    return any(etype == f"highway.{h}" or etype.startswith(f"highway.{h}|") for h in SPAWN_HIGHWAYS)
+
+
+@dataclass
+class Demand:
+    vehicles: int
+    initial_vehicles: int
+    lane_km: float
+    target_per_lane_km: float
+    arrival_rate_per_h: float
+    mean_trip_s: float
+    dropped_unroutable: int
+    routes_from_table: int
+    routes_computed: int
+
+
+def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehaviour, rng: np.random.Generator,
+                 table: RouteTable, out: Path, workdir: Path) -> Demand:  # fmt: skip
+    comp = drivable_component(net)
+    origins = [e for e in comp if is_spawn_edge(e) and e.getLength() > 5.0]
+    if not origins:
+        raise CosimError("the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on")
+    lane_km = sum(e.getLength() * _lanes_for_cars(e) for e in comp) / 1000.0
+    n_target = max(1, round(params.per_lane_km * lane_km))
+    w_orig = np.array([e.getLength() * _lanes_for_cars(e) for e in origins])
+    w_orig /= w_orig.sum()
+    dest_ids = [e.getID() for e in comp]
+    orig_ids = [e.getID() for e in origins]
+    speed = {e.getID(): e.getSpeed() for e in comp}
+    length = {e.getID(): e.getLength() for e in comp}
+
+    def draw(n: int) -> list[tuple[str, str]]:
+        o = rng.choice(len(orig_ids), size=n, p=w_orig)
+        d = rng.integers(0, len(dest_ids), size=n)
+        return [(orig_ids[i], dest_ids[j]) for i, j in zip(o, d, strict=True) if orig_ids[i] != dest_ids[j]]
+
+    def trip_time(edges) -> float:
+        return sum(length[e] / (MEAN_SPEED_FRACTION * speed[e]) for e in edges)
+
+    initial = draw(n_target)
+    routes = table.routes(initial, net_file, workdir)
+    initial = [p for p in initial if routes.get(p)]
+    if not initial:
+        raise CosimError("no origin/destination pair could be routed on this network")
+    mean_trip = float(np.mean([trip_time(routes[p]) for p in initial]))
+    rate = n_target / mean_trip  # vehicles per second that keep the population constant
+    n_flow = int(rng.poisson(rate * params.horizon_s))
+    departs = np.sort(rng.uniform(0.0, params.horizon_s, n_flow))
+    flow = draw(n_flow)
+    departs = departs[: len(flow)]
+    routes.update(table.routes(flow, net_file, workdir))
+    dropped = sum(1 for p in flow if not routes.get(p))
+
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>", behaviour.vtype_distribution_xml(rng)]
+    n = 0
+    for o, d in initial:  # already spread over the network at t = 0
+        lines.append(
+            f'    <vehicle id="scv{n}" type="scv" depart="0.00" departLane="best" departPos="random_free" '
+            f'departSpeed="max"><route edges="{" ".join(routes[(o, d)])}"/></vehicle>'
+        )
+        n += 1
+    for t, (o, d) in zip(departs, flow, strict=True):
+        if not routes.get((o, d)):
+            continue
+        lines.append(
+            f'    <vehicle id="scv{n}" type="scv" depart="{t:.2f}" departLane="best" departPos="base" '
+            f'departSpeed="max"><route edges="{" ".join(routes[(o, d)])}"/></vehicle>'
+        )
+        n += 1
+    lines.append("</routes>")
+    out.write_text("\n".join(lines) + "\n")
+    return Demand(n, len(initial), lane_km, params.per_lane_km, rate * 3600.0, mean_trip, dropped,
+                  table.hits, table.computed)  # fmt: skip

@@ -1,0 +1,280 @@
+"""OSM -> SUMO network in two netconvert passes.
+
+Pass 1 imports the motorized road network with netconvert's own OSM support (lanes, turn:lanes,
+maxspeed, one-ways, traffic signals). netconvert ignores ``highway=stop`` / ``highway=give_way``, so cosim
+maps those sign nodes (from the OSM pre-pass) onto the junctions and approaches they govern and pass 2
+patches the network: junction types (priority_stop / allway_stop / priority), the priority of signed
+approaches (so that they are the minor road), a 5 km/h passage on give-way connections, and the stop line
+of signalised approaches moved back so that SCVs halt 6 m before the junction at red (paper IV.B).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+from cosim.errors import CosimError
+from cosim.scenario.behaviour import ScvBehaviour
+from cosim.scenario.osm import OsmInfo, SignNode
+from cosim.sumo_bridge.tools import ToolRun, run_tool
+
+OPTIONS_DIR = Path(__file__).parent / "netconvert"
+MAX_APPROACH_SEARCH_M = 150.0  # a sign node farther than this from its junction along the way is not used
+
+# Options shared by both passes (junction geometry, turn speeds): pass 2 must not recompute them differently.
+COMMON_OPTIONS = [
+    "--junctions.limit-turn-speed", "5.5",  # curve speed limit on junctions: ~0.55 g lateral (paper IV.B)
+    "--no-turnarounds.except-deadend", "true",
+    "--output.street-names", "true",
+    "--output.original-names", "true",
+]  # fmt: skip
+
+
+def pass1_options(osm: Path, out: Path) -> list[str]:
+    return [
+        "--osm-files", str(osm),
+        "--type-files", str(OPTIONS_DIR / "motorized.typ.xml"),
+        "--keep-edges.by-vclass", "passenger",
+        "--keep-edges.components", "1",  # the largest connected road network; islands are unusable
+        "--remove-edges.isolated", "true",
+        "--osm.turn-lanes", "true",
+        "--osm.all-attributes", "true",
+        "--osm.extra-attributes", "maxspeed,source:maxspeed,maxspeed:type,zone:maxspeed,zone:traffic,oneway,turn:lanes,lanes",
+        "--junctions.join", "true",
+        "--tls.guess-signals", "true",
+        "--tls.discard-simple", "true",
+        "--tls.join", "true",
+        "--tls.default-type", "static",  # fixed-time plans: deterministic and what the paper's lights do
+        "--ramps.guess", "true",
+        "--geometry.remove", "true",
+        *COMMON_OPTIONS,
+        "--output-file", str(out),
+    ]  # fmt: skip
+
+
+@dataclass
+class SignPlacement:
+    """Where an explicit OSM sign applies in the network."""
+
+    sign: SignNode
+    junction: str | None  # SUMO junction id
+    approach_edges: tuple[str, ...]  # incoming edges governed by the sign; () = the junction's minor roads
+    note: str = ""
+
+
+@dataclass
+class NetworkBuild:
+    net_file: Path
+    placements: list[SignPlacement]
+    junction_kind: dict[str, str]  # junction id -> "stop" | "allway_stop" | "give_way"
+    signed_approaches: dict[str, str]  # edge id -> "stop" | "allway_stop" | "give_way"
+    tls_approaches: list[str]
+    runs: list[tuple[str, ToolRun]] = field(default_factory=list)
+
+
+def _osm_nodes_of_junction(junction_id: str) -> list[str]:
+    if junction_id.startswith("cluster_"):
+        return [p for p in junction_id[len("cluster_") :].split("_") if p and not p.startswith("#")]
+    return [junction_id]
+
+
+def _xy(net, lat: float, lon: float) -> tuple[float, float]:
+    return net.convertLonLat2XY(lon, lat)
+
+
+def _edge_end_heading(shape) -> tuple[float, float]:
+    (x0, y0), (x1, y1) = shape[-2][:2], shape[-1][:2]
+    n = math.hypot(x1 - x0, y1 - y0) or 1.0
+    return (x1 - x0) / n, (y1 - y0) / n
+
+
+def _dist_point_polyline(px: float, py: float, shape) -> float:
+    best = math.inf
+    for (x0, y0, *_), (x1, y1, *_) in zip(shape, shape[1:], strict=False):
+        dx, dy = x1 - x0, y1 - y0
+        seg = dx * dx + dy * dy
+        t = 0.0 if seg == 0 else max(0.0, min(1.0, ((px - x0) * dx + (py - y0) * dy) / seg))
+        best = min(best, math.hypot(px - (x0 + t * dx), py - (y0 + t * dy)))
+    return best
+
+
+def place_signs(net, osm: OsmInfo) -> list[SignPlacement]:
+    """Map each stop / give-way sign node onto a junction and (for approach signs) its incoming edge."""
+    node_to_junction: dict[str, str] = {}
+    for node in net.getNodes():
+        for osm_id in _osm_nodes_of_junction(node.getID()):
+            node_to_junction[osm_id] = node.getID()
+    ways_of_node: dict[str, list[str]] = defaultdict(list)
+    for way_id, refs in osm.sign_ways.items():
+        for ref in refs:
+            ways_of_node[ref].append(way_id)
+
+    placements = []
+    for sign in osm.signs:
+        if sign.kind not in ("stop", "allway_stop", "give_way"):
+            continue
+        if sign.node_id in node_to_junction:
+            placements.append(SignPlacement(sign, node_to_junction[sign.node_id], ()))
+            continue
+        # An approach sign: walk along its way(s) to the next junction in the sign's direction.
+        sx, sy = _xy(net, sign.lat, sign.lon)
+        candidates = []
+        for way_id in ways_of_node.get(sign.node_id, []):
+            refs = osm.sign_ways[way_id]
+            i = refs.index(sign.node_id)
+            steps = {"forward": [1], "backward": [-1]}.get(sign.direction or "", [1, -1])
+            for step in steps:
+                j = i + step
+                dist = 0.0
+                prev = osm.node_coords.get(refs[i])
+                while 0 <= j < len(refs):
+                    cur = osm.node_coords.get(refs[j])
+                    if prev and cur:
+                        dist += math.dist(_xy(net, *prev), _xy(net, *cur))
+                    if refs[j] in node_to_junction:
+                        candidates.append((dist, node_to_junction[refs[j]]))
+                        break
+                    prev = cur
+                    j += step
+        candidates = [c for c in candidates if c[0] <= MAX_APPROACH_SEARCH_M]
+        if not candidates:
+            placements.append(SignPlacement(sign, None, (), "no junction along its way within 150 m"))
+            continue
+        _, junction_id = min(candidates)
+        junction = net.getNode(junction_id)
+        jx, jy = junction.getCoord()[:2]
+        # the approach edge: incoming edge nearest to the sign whose end points towards the junction
+        best = None
+        for edge in junction.getIncoming():
+            if edge.getFunction() == "internal":
+                continue
+            shape = edge.getShape()
+            hx, hy = _edge_end_heading(shape)
+            to_j = (jx - sx, jy - sy)
+            if hx * to_j[0] + hy * to_j[1] <= 0:
+                continue
+            d = _dist_point_polyline(sx, sy, shape)
+            if best is None or d < best[0]:
+                best = (d, edge.getID())
+        if best is None or best[0] > 30.0:
+            placements.append(SignPlacement(sign, junction_id, (), "approach edge not found; applied to the junction"))
+        else:
+            placements.append(SignPlacement(sign, junction_id, (best[1],)))
+    return placements
+
+
+_KIND_RANK = {"allway_stop": 3, "stop": 2, "give_way": 1}
+
+
+def _minor_incoming(junction, signed: set[str]) -> list:
+    """Incoming edges that are minor at this junction: signed ones, else those below the top priority."""
+    incoming = [e for e in junction.getIncoming() if e.getFunction() != "internal"]
+    if signed:
+        return [e for e in incoming if e.getID() in signed]
+    top = max((e.getPriority() for e in incoming), default=0)
+    return [e for e in incoming if e.getPriority() < top]
+
+
+def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path):
+    """Write node / edge / connection patch files for pass 2; returns them and the sign summary."""
+    junction_kind: dict[str, str] = {}
+    signed_by_junction: dict[str, set[str]] = defaultdict(set)
+    signed_approaches: dict[str, str] = {}
+    for p in placements:
+        if p.junction is None:
+            continue
+        node = net.getNode(p.junction)
+        if node.getType() == "traffic_light":
+            p.note = "junction is signalised; the light governs"
+            continue
+        kind = p.sign.kind
+        if _KIND_RANK[kind] > _KIND_RANK.get(junction_kind.get(p.junction, ""), 0):
+            junction_kind[p.junction] = kind
+        for e in p.approach_edges:
+            signed_by_junction[p.junction].add(e)
+            if _KIND_RANK[kind] > _KIND_RANK.get(signed_approaches.get(e, ""), 0):
+                signed_approaches[e] = kind
+
+    nodes, edges, cons = [], {}, []
+    for jid, kind in sorted(junction_kind.items()):
+        node = net.getNode(jid)
+        x, y = node.getCoord()[:2]
+        jtype = {"allway_stop": "allway_stop", "stop": "priority_stop", "give_way": "priority"}[kind]
+        nodes.append(f'    <node id={quoteattr(jid)} x="{x:.2f}" y="{y:.2f}" type="{jtype}"/>')
+        signed = signed_by_junction.get(jid, set())
+        incoming = [e for e in node.getIncoming() if e.getFunction() != "internal"]
+        others = [e.getPriority() for e in incoming if e.getID() not in signed]
+        for eid in sorted(signed):
+            edge = net.getEdge(eid)
+            if others and edge.getPriority() >= min(others):
+                new = min(others) - 1
+                edges[eid] = f'priority="{new if new != -1 else -2}"'
+        if kind == "give_way":  # approach the give-way line at walking pace, then look and go (paper IV.B)
+            for edge in _minor_incoming(node, signed):
+                for conns in edge.getOutgoing().values():
+                    for c in conns:
+                        cons.append(
+                            f"    <connection from={quoteattr(edge.getID())} to={quoteattr(c.getTo().getID())} "
+                            f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}" '
+                            f'speed="{behaviour.give_way_approach_speed_kmh / 3.6:.3f}"/>'
+                        )
+    tls_approaches = []
+    for node in net.getNodes():
+        if node.getType() != "traffic_light":
+            continue
+        for edge in node.getIncoming():
+            if edge.getFunction() == "internal" or edge.getLength() < 2.5 * behaviour.red_light_stop_gap_m:
+                continue
+            tls_approaches.append(edge.getID())
+            attrs = edges.get(edge.getID(), "")
+            edges[edge.getID()] = f'{attrs} endOffset="{behaviour.red_light_stop_gap_m:.2f}"'.strip()
+    files = {
+        "nod": workdir / "signs.nod.xml",
+        "edg": workdir / "signs.edg.xml",
+        "con": workdir / "signs.con.xml",
+    }
+    files["nod"].write_text("<nodes>\n" + "\n".join(nodes) + "\n</nodes>\n")
+    files["edg"].write_text(
+        "<edges>\n" + "\n".join(f"    <edge id={quoteattr(e)} {a}/>" for e, a in sorted(edges.items())) + "\n</edges>\n"
+    )
+    files["con"].write_text("<connections>\n" + "\n".join(cons) + "\n</connections>\n")
+    return files, junction_kind, signed_approaches, sorted(tls_approaches)
+
+
+def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
+    if run.returncode != 0:
+        first = run.errors[0] if run.errors else run.log.strip().splitlines()[-1:] or ["unknown error"]
+        raise CosimError(f"{tool} failed on {osm_path}: {first if isinstance(first, str) else first[0]}")
+
+
+def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> NetworkBuild:
+    """Run both netconvert passes into ``workdir``; returns the final network and the sign mapping."""
+    import sumolib
+
+    pass1 = workdir / "pass1.net.xml"
+    run1 = run_tool("netconvert", pass1_options(osm.path, pass1))
+    (workdir / "netconvert.log").write_text(run1.log)
+    _check("netconvert", run1, osm.path)
+    net1 = sumolib.net.readNet(str(pass1), withInternal=False)
+    if not [e for e in net1.getEdges() if e.allows("passenger")]:
+        raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
+    placements = place_signs(net1, osm)
+    files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
+    final = workdir / "network.net.xml"
+    run2 = run_tool(
+        "netconvert",
+        ["--sumo-net-file", str(pass1), "--node-files", str(files["nod"]), "--edge-files", str(files["edg"]),
+         "--connection-files", str(files["con"]), *COMMON_OPTIONS,
+         "--offset.disable-normalization", "true",  # keep pass 1's coordinates (signs, buildings)
+         "--output-file", str(final)],
+    )  # fmt: skip
+    with (workdir / "netconvert.log").open("a") as fh:
+        fh.write("\n--- pass 2 (signs) ---\n" + run2.log)
+    _check("netconvert (sign pass)", run2, osm.path)
+    pass1.unlink()
+    for f in files.values():
+        f.unlink()
+    return NetworkBuild(final, placements, junction_kind, signed, tls_approaches, [("pass1", run1), ("pass2", run2)])
