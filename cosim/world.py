@@ -96,7 +96,8 @@ class World:
         self._free = sorted(set(self._free) | set(range(old, capacity)), reverse=True)
         self.capacity = capacity
 
-    def edge_code(self, edge_id: str) -> int:
+    def intern_edge(self, edge_id: str) -> int:
+        """The code of an edge id in edge_names (added on first sight)."""
         code = self.edge_code_of.get(edge_id)
         if code is None:
             code = self.edge_code_of[edge_id] = len(self.edge_names)

@@ -3,7 +3,7 @@
 | paper rule | SUMO mapping | where SUMO differs |
 |---|---|---|
 | red light: stop 6 m before the junction | signalised approaches get ``endOffset`` = 6 m (stop line moved back) | none for SCVs; the ego's driver model reads the same stop line |
-| stop sign: halt (>= 2 frames), go if nobody approaches within 200 m | junction type ``priority_stop`` / ``allway_stop``; ``jmStoplineGap``; ``jmTimegapMinor`` = 200 m / reference major-road speed | SUMO's gap acceptance is time-based, so "200 m" holds for foes at the reference speed |
+| stop sign: halt (>= 2 frames), go if nobody approaches within 200 m | junction type ``priority_stop`` / ``allway_stop``; ``jmStopSignWait``; ``jmTimegapMinor`` = 200 m / reference major-road speed, capped at ``max_minor_time_gap_s`` | SUMO's gap acceptance is time-based and applies at every minor link, signed or not; the uncapped 14.4 s raised teleports on Krems from 4 % to 6 %, so the default cap is 3 s (set it to 15 for the literal rule) |
 | give-way: slow to 5 km/h, stop if a vehicle approaches within 200 m | the give-way connections get a 5 km/h passage speed, so cars arrive at the line at 5 km/h; same gap rule | the 5 km/h also applies while crossing the junction |
 | keep a 2-s gap to the vehicle ahead | Krauss ``tau`` = 2 s | Krauss keeps *at least* tau; the paper cut speed by 80 % instead |
 | slow down in curves | netconvert ``--junctions.limit-turn-speed 5.5`` (lateral accel. on junction turns) | curves inside an edge do not lower the speed in SUMO |
@@ -42,6 +42,7 @@ class ScvBehaviour:
     red_light_stop_gap_m: float = 6.0  # SCVs stop this far before the junction at red [m]
     stop_sign_clear_distance_m: float = 200.0  # go only if no foe is within this distance [m]
     reference_major_speed_mps: float = 13.89  # converts the clear distance into SUMO's time gap [m/s]
+    max_minor_time_gap_s: float = 3.0  # cap: SUMO applies the gap at EVERY minor link, not only signed ones [s]
     give_way_approach_speed_kmh: float = 5.0  # [km/h]
     stop_sign_wait_s: float = 1.0  # minimum standstill at a stop sign (paper: >= 2 frames) [s]
     accel_mps2: Dist = Dist(2.6, 0.4, 1.5, 3.5)  # max acceleration [m/s^2]
@@ -67,7 +68,7 @@ class ScvBehaviour:
 
     @property
     def minor_time_gap_s(self) -> float:
-        return self.stop_sign_clear_distance_m / self.reference_major_speed_mps
+        return min(self.stop_sign_clear_distance_m / self.reference_major_speed_mps, self.max_minor_time_gap_s)
 
     def vtype_distribution_xml(self, rng: np.random.Generator, dist_id: str = "scv") -> str:
         n = self.n_vtypes

@@ -22,7 +22,7 @@ from cosim.scenario.routetable import RouteTable
 # jam density is ~130-150; city-wide averages are far lower because side streets are nearly empty.
 DENSITY_PRESETS = {"low": 2.0, "medium": 5.0, "high": 10.0}
 DENSITY_NAMES = tuple(DENSITY_PRESETS)
-MEAN_SPEED_FRACTION = 0.6  # urban trips average ~60 % of the speed limit (signals, junctions)
+MEAN_SPEED_FRACTION = 0.35  # measured on Krems: SCV trips average ~35 % of the speed limit (junctions, lights)
 
 
 @dataclass(frozen=True)

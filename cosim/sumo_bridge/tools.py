@@ -42,7 +42,7 @@ def binary(name: str) -> str:
 @cache
 def sumo_version() -> str:
     out = subprocess.run([binary("sumo"), "--version"], capture_output=True, text=True, env=sumo_env()).stdout
-    match = re.search(r"Version (\S+)", out)
+    match = re.search(r"(?:Version|sumo) (\d[\w.+-]*)", out)
     return match.group(1) if match else "unknown"
 
 

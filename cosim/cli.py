@@ -1,0 +1,126 @@
+"""The ``cosim`` command: parses arguments and calls the library. User errors -> one line, exit code 2."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from cosim.errors import CosimError
+
+
+def _build_scenario(args) -> int:
+    from cosim.scenario import build_scenario
+
+    build_scenario(args.osm, args.out, density=args.density, seed=args.seed)
+    return 0
+
+
+def _run(args) -> int:
+    from cosim.runconfig import load_run_config
+    from cosim.sim import Simulation
+
+    overrides = {"scenario.map": args.map, "scenario.demand.density": args.density, "duration_s": args.duration,
+                 "seed": args.seed}  # fmt: skip
+    config = load_run_config(args.config, **overrides)
+    out = Path(args.out) if args.out else Path("results") / config.name
+    with Simulation(config, out_dir=out, gui=args.gui, quiet=args.quiet, log=None if not args.quiet else (lambda *a: None)) as sim:
+        stats = sim.run()
+    stats["log"] = str(out / "run.mcap")
+    print(json.dumps(stats) if args.quiet else "\n".join(f"{k}: {v}" for k, v in stats.items()))
+    return 130 if stats["interrupted"] else 0
+
+
+def _log_info(args) -> int:
+    from cosim.log import read
+
+    log = read(args.file, topics=[])
+    print(f"{args.file}: {sum(log.counts.values())} messages, {log.duration_s:.1f} s"
+          + (" (truncated: read up to the last complete chunk)" if log.truncated else ""))  # fmt: skip
+    for topic, n in sorted(log.counts.items()):
+        print(f"  {topic:<24} {n:>8} messages")
+    for name, meta in log.metadata.items():
+        keys = ", ".join(f"{k}={v}" for k, v in meta.items() if k != "config")
+        print(f"  metadata {name}: {keys}")
+    return 0
+
+
+def _log_export(args) -> int:
+    import csv
+
+    from cosim.log import read
+
+    log = read(args.file, topics=[args.topic])
+    if args.topic not in log.topics:
+        raise CosimError(f"{args.file} has no topic {args.topic} (topics: {', '.join(sorted(log.counts))})")
+    cols = log.topics[args.topic]
+    out = open(args.out, "w", newline="") if args.out else sys.stdout  # noqa: SIM115
+    try:
+        writer = csv.writer(out)
+        names = [k for k, v in cols.items() if v.ndim == 1]
+        writer.writerow(names)
+        for row in zip(*(cols[k] for k in names), strict=True):
+            writer.writerow(row)
+    finally:
+        if args.out:
+            out.close()
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from cosim.scenario.demand import DENSITY_NAMES
+
+    p = argparse.ArgumentParser(prog="cosim", description="Driving simulator with a lockstep VANET layer (SUMO + MuJoCo).")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    b = sub.add_parser("build-scenario", help="build a SUMO scenario from an OSM file")
+    b.add_argument("--osm", required=True, help="OSM file (.osm or .osm.gz)")
+    b.add_argument("--out", help="directory to write the scenario into (default: only the cache)")
+    b.add_argument("--density", choices=DENSITY_NAMES, default="medium")
+    b.add_argument("--seed", type=int, default=0)
+    b.set_defaults(fn=_build_scenario)
+
+    r = sub.add_parser("run", help="run the co-simulation headless from a config")
+    r.add_argument("config", nargs="?", help="run config YAML (default: built-in defaults)")
+    r.add_argument("--map", help="OSM file to run on instead of the config's map")
+    r.add_argument("--density", choices=DENSITY_NAMES)
+    r.add_argument("--duration", type=float, help="simulated seconds")
+    r.add_argument("--seed", type=int)
+    r.add_argument("--out", help="output directory (default results/<name>)")
+    r.add_argument("--gui", action="store_true", help="watch in sumo-gui (TraCI backend)")
+    r.add_argument("--quiet", action="store_true", help="no progress bar; print the result as JSON")
+    r.set_defaults(fn=_run)
+
+    lg = sub.add_parser("log", help="inspect a run's MCAP log")
+    lsub = lg.add_subparsers(dest="log_command", required=True)
+    li = lsub.add_parser("info", help="topics, counts and duration")
+    li.add_argument("file")
+    li.set_defaults(fn=_log_info)
+    le = lsub.add_parser("export", help="export one topic as CSV")
+    le.add_argument("file")
+    le.add_argument("--topic", required=True)
+    le.add_argument("--csv", action="store_true", default=True, help="CSV output (the only format)")
+    le.add_argument("--out", help="CSV file (default: stdout)")
+    le.set_defaults(fn=_log_export)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.fn(args)
+    except CosimError as exc:
+        print(f"cosim: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("cosim: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # output piped into `head`
+        sys.stderr.close()
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

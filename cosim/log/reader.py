@@ -1,0 +1,138 @@
+"""Read a cosim MCAP log into per-topic columns (numpy arrays).
+
+Messages whose fields are lists of equal length (per-vehicle columns) are exploded into one row per item,
+with the message's scalar fields repeated. A file cut short by a crash is read up to its last complete
+chunk (``truncated`` says so).
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mcap.exceptions import McapError
+from mcap.records import Channel, Chunk, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
+
+from cosim.errors import CosimError
+
+
+@dataclass
+class Log:
+    path: Path
+    topics: dict[str, dict[str, np.ndarray]]
+    counts: dict[str, int]
+    metadata: dict[str, dict[str, str]]
+    start_ns: int | None
+    end_ns: int | None
+    truncated: bool = False
+    raw: dict[str, list[bytes]] = field(default_factory=dict)
+
+    def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
+        return self.topics[topic]
+
+    @property
+    def duration_s(self) -> float:
+        return 0.0 if self.start_ns is None else (self.end_ns - self.start_ns) / 1e9
+
+
+def iter_messages(path: str | Path):
+    """Yield (topic, log_time_ns, data bytes) and metadata records; stops quietly at a truncated tail.
+
+    Returns via StopIteration value whether the file was truncated."""
+    path = Path(path)
+    channels: dict[int, Channel] = {}
+    with path.open("rb") as fh:
+        if fh.read(8) != b"\x89MCAP0\r\n":
+            raise CosimError(f"{path} is not an MCAP file")
+        fh.seek(0)
+        try:
+            for record in StreamReader(fh, skip_magic=False).records:
+                if isinstance(record, Chunk):
+                    try:
+                        inner = breakup_chunk(record, validate_crc=True)
+                    except Exception:  # corrupt final chunk
+                        return True
+                else:
+                    inner = [record]
+                for r in inner:
+                    if isinstance(r, Channel):
+                        channels[r.id] = r
+                    elif isinstance(r, Message):
+                        yield channels[r.channel_id].topic, r.log_time, r.data
+                    elif isinstance(r, Metadata):
+                        yield "#metadata", r.name, r.metadata
+                    elif isinstance(r, Schema):
+                        pass
+        except (McapError, EOFError, ValueError, KeyError, struct.error):  # cut short by a crash
+            return True
+    return False
+
+
+def _columns(messages: list[dict]) -> dict[str, np.ndarray]:
+    cols: dict[str, list] = defaultdict(list)
+    keys: list[str] = []
+    for msg in messages:
+        for k in msg:
+            if k not in cols:
+                keys.append(k)
+                cols[k]  # noqa: B018 - create in order
+    for msg in messages:
+        lists = {k: v for k, v in msg.items() if isinstance(v, list)}
+        n = len(next(iter(lists.values()))) if lists else 1
+        if lists and any(len(v) != n for v in lists.values()):
+            lists = {}  # not a column message: keep the lists as objects
+            n = 1
+        for k in keys:
+            v = msg.get(k)
+            if k in lists:
+                cols[k].extend(v)
+            else:
+                cols[k].extend([v] * n)
+    out = {}
+    for k, v in cols.items():
+        arr = np.asarray([np.nan if x is None else x for x in v] if _numeric(v) else v, dtype=None if _numeric(v) else object)
+        out[k] = arr
+    return out
+
+
+def _numeric(values: list) -> bool:
+    return all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in values) and any(
+        x is not None for x in values
+    )
+
+
+def read(path: str | Path, topics: list[str] | None = None, keep_raw: bool = False) -> Log:
+    """Per-topic columns of a cosim MCAP log; ``topics`` limits what is decoded."""
+    path = Path(path)
+    if not path.is_file():
+        raise CosimError(f"log file {path} does not exist")
+    decoded: dict[str, list[dict]] = defaultdict(list)
+    raw: dict[str, list[bytes]] = defaultdict(list)
+    counts: dict[str, int] = defaultdict(int)
+    metadata: dict[str, dict[str, str]] = {}
+    start = end = None
+    gen = iter_messages(path)
+    truncated = False
+    while True:
+        try:
+            topic, t, data = next(gen)
+        except StopIteration as stop:
+            truncated = bool(stop.value)
+            break
+        if topic == "#metadata":
+            metadata[t] = dict(data)
+            continue
+        counts[topic] += 1
+        start = t if start is None else min(start, t)
+        end = t if end is None else max(end, t)
+        if topics is None or topic in topics:
+            decoded[topic].append(json.loads(data))
+            if keep_raw:
+                raw[topic].append(bytes(data))
+    return Log(path, {k: _columns(v) for k, v in decoded.items()}, dict(counts), metadata, start, end, truncated,
+               dict(raw))  # fmt: skip

@@ -1,0 +1,120 @@
+"""The run config: what ``cosim run CONFIG`` reads. Frozen dataclasses, filled by cosim.config.from_dict."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from cosim.config import from_dict, read_yaml
+from cosim.errors import ConfigError
+from cosim.scenario import ScenarioConfig
+
+
+def _is_multiple(value: float, base: float) -> bool:
+    ratio = value / base
+    return ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6
+
+
+@dataclass(frozen=True)
+class TimingConfig:
+    """Every rate is an integer multiple of the base step (the SUMO step); checked here at load."""
+
+    sumo_step_s: float = 0.1  # base step [s]
+    physics_timestep_s: float = 0.002  # MuJoCo timestep; sumo_step_s must be a multiple (>= 500 Hz) [s]
+    cam_check_period_s: float = 0.1  # ETSI: CAM conditions checked at least every 100 ms [s]
+
+    def __post_init__(self):
+        if not 0.001 <= self.sumo_step_s <= 1.0:
+            raise ValueError(f"sumo_step_s must be in [0.001, 1] s, got {self.sumo_step_s}")
+        if not _is_multiple(self.sumo_step_s, self.physics_timestep_s):
+            raise ValueError(f"sumo_step_s ({self.sumo_step_s}) must be an integer multiple of physics_timestep_s "
+                             f"({self.physics_timestep_s})")  # fmt: skip
+        if self.physics_timestep_s > 0.002 + 1e-12:
+            raise ValueError("physics_timestep_s must be <= 0.002 s (MuJoCo car at >= 500 Hz)")
+        if not _is_multiple(self.cam_check_period_s, self.sumo_step_s):
+            raise ValueError(f"cam_check_period_s ({self.cam_check_period_s}) must be an integer multiple of "
+                             f"sumo_step_s ({self.sumo_step_s})")  # fmt: skip
+        if self.cam_check_period_s > 0.1 + 1e-9:
+            raise ValueError("cam_check_period_s must be <= 0.1 s (ETSI EN 302 637-2)")
+
+    @property
+    def physics_substeps(self) -> int:
+        return round(self.sumo_step_s / self.physics_timestep_s)
+
+    @property
+    def cam_check_steps(self) -> int:
+        return round(self.cam_check_period_s / self.sumo_step_s)
+
+
+@dataclass(frozen=True)
+class EgoConfig:
+    enabled: bool = True
+    physics: Literal["mujoco", "sumo"] = "mujoco"  # sumo: a plain SUMO vehicle flagged as ego
+    route: tuple[str, ...] = ()  # edge ids; empty = chosen from the seed (a long A* route)
+    route_length_m: float = 12000.0  # minimum length of an automatic route [m]
+    depart_s: float = 5.0  # when the lead vehicle departs; the ego follows 3 s later [s]
+    lead_vehicle: bool = True  # a SUMO vehicle on the same route, ahead of the ego, to follow
+    driver: Literal["scripted", "keyboard", "wheel"] = "scripted"
+    profile: str = "daily_commuter"
+
+    def __post_init__(self):
+        if self.route_length_m <= 0 or self.depart_s < 0:
+            raise ValueError("route_length_m must be > 0 and depart_s >= 0")
+
+
+@dataclass(frozen=True)
+class LogConfig:
+    traffic_every_steps: int = 5  # /traffic/vehicles every N base steps (0 = off)
+    scene_every_steps: int = 10  # /scene (Foxglove boxes) every N steps (0 = off)
+    scene_radius_m: float = 400.0  # vehicles farther from the ego are left out of /scene
+    flush_every_s: float = 2.0  # wall-clock interval of crash-safe flushes
+
+    def __post_init__(self):
+        if self.traffic_every_steps < 0 or self.scene_every_steps < 0 or self.flush_every_s <= 0:
+            raise ValueError("log rates must be >= 0 and flush_every_s > 0")
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    name: str = "run"
+    seed: int = 0
+    duration_s: float = 300.0
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    timing: TimingConfig = field(default_factory=TimingConfig)
+    ego: EgoConfig = field(default_factory=EgoConfig)
+    log: LogConfig = field(default_factory=LogConfig)
+
+    def __post_init__(self):
+        if self.duration_s <= 0:
+            raise ValueError("duration_s must be > 0")
+
+
+def load_run_config(path: str | Path | None = None, **overrides) -> RunConfig:
+    """Load a run config; ``scenario.map`` is resolved relative to the config file's folder.
+
+    ``overrides`` are top-level or dotted keys (``{"scenario.demand.density": "high"}``) applied before
+    validation, so that command-line options are checked like the file.
+    """
+    data = read_yaml(path) if path else {}
+    base = Path(path).resolve().parent if path else Path.cwd()
+    for key, value in overrides.items():
+        if value is None:
+            continue
+        node = data
+        parts = key.split(".")
+        for p in parts[:-1]:
+            node = node.setdefault(p, {})
+            if not isinstance(node, dict):
+                raise ConfigError(key, "cannot override inside a non-mapping value")
+        node[parts[-1]] = value
+    config = from_dict(RunConfig, data)
+    map_path = Path(config.scenario.map)
+    if not map_path.is_absolute():
+        candidate = (base / map_path) if path else map_path
+        if not candidate.exists() and path:  # configs/ files name maps relative to the project root too
+            alt = base.parent / map_path
+            candidate = alt if alt.exists() else candidate
+        map_path = candidate.resolve()
+    return dataclasses.replace(config, scenario=dataclasses.replace(config.scenario, map=str(map_path)))

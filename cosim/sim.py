@@ -1,0 +1,205 @@
+"""The orchestrator: owns simulated time (an integer step counter) and the fixed phase order.
+
+One step (ARCHITECTURE.md): sumo -> vanet -> adas -> driver -> ego -> writeback -> log. Each phase is a
+list of hooks ``fn(sim)`` that packages plug into with ``Simulation.add_hook(phase, fn)``; every hook of a
+step reads the same snapshot (``sim.world``), so vehicle order never matters.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+import cosim
+from cosim.config import to_dict
+from cosim.log import McapLog
+from cosim.runconfig import RunConfig
+from cosim.scenario import Scenario, build_scenario
+from cosim.scenario.demand import drivable_component, is_spawn_edge
+from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoBridge, SumoEvent
+from cosim.sumo_bridge.tools import sumo_version
+from cosim.world import World
+
+PHASES = ("sumo", "vanet", "adas", "driver", "ego", "writeback", "log")
+
+
+class Progress:
+    """One self-rewriting line on stderr: simulated time, vehicles and real-time factor."""
+
+    def __init__(self, total_s: float, enabled: bool):
+        self.total_s = total_s
+        self.enabled = enabled and total_s > 0
+        self.t0 = time.perf_counter()
+        self.last = 0.0
+
+    def update(self, t_s: float, vehicles: int, force: bool = False) -> None:
+        now = time.perf_counter()
+        if not self.enabled or (now - self.last < 0.5 and not force):
+            return
+        self.last = now
+        wall = now - self.t0
+        rtf = t_s / wall if wall > 0 else 0.0
+        frac = min(1.0, t_s / self.total_s)
+        bar = "#" * int(frac * 30)
+        sys.stderr.write(f"\r[{bar:<30}] {t_s:7.1f}/{self.total_s:.0f} s  {vehicles:5d} vehicles  {rtf:6.1f}x real time")
+        sys.stderr.flush()
+
+    def done(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+class Simulation:
+    """A co-simulation run. Use as a context manager so SUMO and the log are always closed."""
+
+    def __init__(self, config: RunConfig, *, out_dir: str | Path | None = None, gui: bool = False,
+                 quiet: bool = True, scenario: Scenario | None = None, log=None):  # fmt: skip
+        self.config = config
+        self.quiet = quiet
+        say = log or (lambda *_: None if quiet else print(*_))
+        self.scenario = scenario or build_scenario(
+            config.scenario.map, config=config.scenario, seed=config.seed, log=say
+        )
+        self.step_s = config.timing.sumo_step_s
+        self.steps_total = round(config.duration_s / self.step_s)
+        self.world = World(capacity=1024)
+        self.rng = np.random.default_rng(config.seed)
+        self.hooks: dict[str, list[Callable[[Simulation], None]]] = {p: [] for p in PHASES}
+        self.events: list[SumoEvent] = []  # this step's events (hooks may append)
+        self.outputs: dict[str, object] = {}  # per-step results of the phases, by phase name
+        self.out_dir = Path(out_dir) if out_dir else None
+        self.mcap: McapLog | None = None
+        self.bridge: SumoBridge | None = None
+        self._net = None
+        self.ego_route: list[str] = []
+        self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
+        self.closed = False
+        try:
+            self.bridge = SumoBridge(self.scenario.sumocfg, seed=config.seed, step_s=self.step_s, gui=gui)
+            if self.out_dir is not None:
+                self.mcap = McapLog(self.out_dir / "run.mcap", flush_every_s=config.log.flush_every_s)
+                self._write_metadata()
+            if config.ego.enabled:
+                self._setup_ego()
+            from cosim.log.recorder import attach_recorder
+
+            if self.mcap is not None:
+                attach_recorder(self)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- set-up ----------------------------------------------------------------------------------------------
+    @property
+    def net(self):
+        """The sumolib network (loaded on first use)."""
+        if self._net is None:
+            import sumolib
+
+            self._net = sumolib.net.readNet(str(self.scenario.net_file), withInternal=True)
+        return self._net
+
+    def _write_metadata(self) -> None:
+        self.mcap.metadata("cosim", {
+            "config": json.dumps(to_dict(self.config), sort_keys=True), "seed": self.config.seed,
+            "cosim_version": cosim.__version__, "sumo_version": sumo_version(),
+            "scenario_key": self.scenario.report["cache"]["scenario_key"],
+            "map": Path(self.config.scenario.map).name, "step_s": self.step_s,
+        })  # fmt: skip
+
+    def _setup_ego(self) -> None:
+        ego = self.config.ego
+        route = list(ego.route) or self.choose_route(ego.route_length_m)
+        self.ego_route = route
+        if ego.lead_vehicle:
+            self.bridge.add_vehicle(LEAD_ID, route, depart=ego.depart_s, type_id="scv", color=(40, 120, 255, 255))
+        self.bridge.add_ego(route, depart=ego.depart_s + (3.0 if ego.lead_vehicle else 0.0),
+                            controlled=ego.physics == "mujoco")  # fmt: skip
+
+    def choose_route(self, min_length_m: float) -> list[str]:
+        """A long A* route from the seed: random legs chained until ``min_length_m`` (deterministic)."""
+        rng = np.random.default_rng([self.config.seed, 7])
+        comp = drivable_component(self.net)
+        comp_ids = [e.getID() for e in comp]
+        starts = [e for e in comp if is_spawn_edge(e) and e.getLength() > 40 and e.getSpeed() >= 8.0] or comp
+        length = {e.getID(): e.getLength() for e in comp}
+        route = [starts[rng.integers(len(starts))].getID()]
+        total = length[route[0]]
+        for _ in range(200):
+            if total >= min_length_m:
+                break
+            dest = comp_ids[rng.integers(len(comp_ids))]
+            leg = self.bridge.find_route(route[-1], dest)
+            if len(leg) < 2 or (len(route) > 1 and leg[1] == route[-2]):  # avoid an immediate U-turn
+                continue
+            route.extend(leg[1:])
+            total += sum(length.get(e, 0.0) for e in leg[1:])
+        return route
+
+    # -- the loop --------------------------------------------------------------------------------------------
+    def add_hook(self, phase: str, fn: Callable[[Simulation], None]) -> None:
+        if phase not in self.hooks:
+            raise ValueError(f"unknown phase {phase!r} (phases: {', '.join(PHASES)})")
+        self.hooks[phase].append(fn)
+
+    @property
+    def t_s(self) -> float:
+        return self.world.t_s
+
+    def step(self) -> World:
+        """Advance one base step through every phase in order."""
+        self.outputs = {}
+        self.events = self.bridge.step(self.world)
+        for phase in PHASES:
+            for fn in self.hooks[phase]:
+                fn(self)
+        for ev in self.events:
+            if ev.kind == "teleport":
+                self.stats["teleports"] += 1
+            elif ev.kind == "collision":
+                self.stats["collisions"] += 1
+            elif ev.kind == "ego_off_road":
+                self.stats["ego_off_road"] += 1
+        self.stats["steps"] += 1
+        return self.world
+
+    def run(self, duration_s: float | None = None) -> dict:
+        """Run for ``duration_s`` (default: the config's); Ctrl-C stops cleanly with a valid log."""
+        steps = self.steps_total if duration_s is None else round(duration_s / self.step_s)
+        progress = Progress(steps * self.step_s, enabled=not self.quiet)
+        t0 = time.perf_counter()
+        interrupted = False
+        try:
+            for _ in range(steps):
+                self.step()
+                progress.update(self.world.t_s, self.world.n_valid)
+        except KeyboardInterrupt:
+            interrupted = True
+        progress.update(self.world.t_s, self.world.n_valid, force=True)
+        progress.done()
+        wall = time.perf_counter() - t0
+        return {**self.stats, "simulated_s": round(self.world.t_s, 3), "wall_s": round(wall, 2),
+                "real_time_factor": round(self.world.t_s / wall, 2) if wall > 0 else None,
+                "interrupted": interrupted}  # fmt: skip
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            if self.mcap is not None:
+                self.mcap.close()
+        finally:
+            if self.bridge is not None:
+                self.bridge.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

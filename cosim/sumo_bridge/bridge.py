@@ -1,0 +1,169 @@
+"""The only place that talks to a running SUMO: start/close, read the snapshot, write the ego back.
+
+The backend is chosen in one place (``_backend``): libsumo in-process by default, TraCI over TCP with
+``sumo-gui`` for watching a run; both expose the same API, so the rest of the code path is identical.
+Reading uses plain libsumo getters (measured faster than subscriptions and context queries in libsumo:
+see bench/bench_core.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from cosim.errors import CosimError
+from cosim.sumo_bridge.tools import binary
+from cosim.world import World
+
+EGO_ID = "ego"
+LEAD_ID = "lead"
+
+
+def _backend(gui: bool):
+    if gui:
+        import traci
+
+        return traci
+    import libsumo
+
+    return libsumo
+
+
+@dataclass(frozen=True)
+class SumoEvent:
+    kind: str  # teleport | collision | emergency_stop | ego_off_road | red_light_violation
+    vehicle: str
+    detail: str = ""
+    value: float = float("nan")
+
+
+class SumoBridge:
+    def __init__(self, sumocfg, *, seed: int, step_s: float, gui: bool = False, extra_args: tuple[str, ...] = ()):
+        self.gui = gui
+        self.sumo = _backend(gui)
+        cmd = [binary("sumo-gui" if gui else "sumo"), "-c", str(sumocfg), "--seed", str(seed),
+               "--step-length", f"{step_s:g}", "--no-warnings", "true", "--no-step-log", "true",
+               "--collision.check-junctions", "true", "--collision.action", "warn",
+               "--additional-files", str(sumocfg.parent / "signs.add.xml"),  # buildings are cosim's, not SUMO's
+               *extra_args]  # fmt: skip
+        if gui:
+            cmd += ["--start", "true", "--quit-on-end", "true"]
+        try:
+            self.sumo.start(cmd)
+        except Exception as exc:  # libsumo raises a bare error; the message log has the detail
+            raise CosimError(f"SUMO could not start the scenario {sumocfg}: {exc}") from None
+        self.step_s = step_s
+        self.open = True
+        self._length: dict[str, float] = {}
+        self.ego_id: str | None = None
+        self.ego_on_road = True
+
+    def close(self) -> None:
+        if self.open:
+            self.open = False
+            self.sumo.close()
+
+    # -- stepping --------------------------------------------------------------------------------------------
+    def step(self, world: World) -> list[SumoEvent]:
+        """Advance SUMO one step and refresh ``world`` in place; returns the step's traffic events."""
+        sumo = self.sumo
+        sumo.simulationStep()
+        sim = sumo.simulation
+        world.step += 1
+        world.t_s = sim.getTime()
+        for vid in sim.getArrivedIDList():
+            world.remove(vid)
+        veh = sumo.vehicle
+        for vid in sim.getDepartedIDList():
+            slot = world.add(vid, is_ego=(vid == self.ego_id))
+            world.length_m[slot] = veh.getLength(vid)
+            world.width_m[slot] = veh.getWidth(vid)
+        events = [SumoEvent("teleport", v) for v in sim.getStartingTeleportIDList()]
+        for c in sim.getCollisions():
+            events.append(SumoEvent("collision", c.collider, f"with {c.victim} ({c.type}) on {c.lane}", c.colliderSpeed))
+        self._read(world)
+        return events
+
+    def _read(self, world: World) -> None:
+        veh = self.sumo.vehicle
+        get_pos, get_angle, get_speed, get_acc = veh.getPosition, veh.getAngle, veh.getSpeed, veh.getAcceleration
+        get_lane, get_lane_pos, get_lat, get_sig = veh.getLaneID, veh.getLanePosition, veh.getLateralLanePosition, veh.getSignals
+        x, y, hd, sp, ac = world.x_m, world.y_m, world.heading_deg, world.speed_mps, world.accel_mps2
+        lp, lat, sig, ec, li = world.lane_pos_m, world.lateral_offset_m, world.signals, world.edge_code, world.lane_index
+        intern_edge = world.intern_edge
+        lane_cache: dict[str, tuple[int, int]] = {}
+        for slot, vid in enumerate(world.ids):
+            if vid is None:
+                continue
+            x[slot], y[slot] = get_pos(vid)
+            hd[slot] = get_angle(vid)
+            sp[slot] = get_speed(vid)
+            ac[slot] = get_acc(vid)
+            lane = get_lane(vid)
+            code = lane_cache.get(lane)
+            if code is None:
+                edge, _, idx = lane.rpartition("_")
+                code = lane_cache[lane] = (intern_edge(edge), int(idx) if idx.isdigit() else -1)
+            ec[slot], li[slot] = code
+            lp[slot] = get_lane_pos(vid)
+            lat[slot] = get_lat(vid)
+            sig[slot] = get_sig(vid)
+
+    def traffic_lights(self) -> tuple[list[str], list[str]]:
+        tls = self.sumo.trafficlight
+        ids = sorted(tls.getIDList())
+        return ids, [tls.getRedYellowGreenState(t) for t in ids]
+
+    # -- ego -------------------------------------------------------------------------------------------------
+    def add_vehicle(self, vid: str, route: list[str], *, depart: float | str = "now", type_id: str | None = None,
+                    depart_speed: str = "0", color=None) -> None:  # fmt: skip
+        rid = f"route_{vid}"
+        self.sumo.route.add(rid, route)
+        self.sumo.vehicle.add(vid, rid, typeID=type_id or "DEFAULT_VEHTYPE", depart=str(depart),
+                              departLane="best", departSpeed=depart_speed)  # fmt: skip
+        if color is not None:
+            self.sumo.vehicle.setColor(vid, color)
+
+    def add_ego(self, route: list[str], *, depart: float | str = "now", controlled: bool) -> None:
+        """Insert the ego. When MuJoCo drives it (``controlled``), SUMO must not move it by itself."""
+        self.ego_id = EGO_ID
+        self.add_vehicle(EGO_ID, route, depart=depart, color=(255, 40, 40, 255))
+        if controlled:
+            veh = self.sumo.vehicle
+            veh.setSpeedMode(EGO_ID, 0)  # no SUMO safety checks: the physics decides
+            veh.setLaneChangeMode(EGO_ID, 0)
+
+    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, edge_hint: str = "",
+                  lane_hint: int = -1) -> SumoEvent | None:  # fmt: skip
+        """Place the ego (front-bumper pose) for the next SUMO step and tell followers its speed.
+
+        keepRoute=2 lets SUMO map the pose onto any lane; if that fails the ego is off the road: an
+        event, and the ego keeps its last mapped position in SUMO until it returns.
+        """
+        veh = self.sumo.vehicle
+        try:
+            veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=2, matchThreshold=5.0)
+            veh.setPreviousSpeed(EGO_ID, max(0.0, speed_mps))
+        except Exception as exc:  # libsumo.TraCIException: no lane near the pose
+            if self.ego_on_road:
+                self.ego_on_road = False
+                return SumoEvent("ego_off_road", EGO_ID, str(exc).splitlines()[0][:200])
+            return None
+        if not self.ego_on_road:
+            self.ego_on_road = True
+            return SumoEvent("ego_on_road", EGO_ID)
+        return None
+
+    def leader(self, vid: str, distance_m: float = 200.0) -> tuple[str, float] | None:
+        res = self.sumo.vehicle.getLeader(vid, distance_m)
+        return (res[0], res[1]) if res and res[0] else None
+
+    def find_route(self, origin: str, destination: str) -> list[str]:
+        return list(self.sumo.simulation.findRoute(origin, destination, vType="DEFAULT_VEHTYPE").edges)
+
+    def vehicle_ids(self) -> list[str]:
+        return list(self.sumo.vehicle.getIDList())
+
+    def next_tls(self, vid: str) -> tuple[str, int, float, str] | None:
+        """(tls id, link index, distance to the stop line [m], state char) of the next light, if any."""
+        nxt = self.sumo.vehicle.getNextTLS(vid)
+        return tuple(nxt[0]) if nxt else None
