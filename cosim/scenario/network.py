@@ -39,7 +39,6 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         "--type-files", str(OPTIONS_DIR / "motorized.typ.xml"),
         "--keep-edges.by-vclass", "passenger",
         "--keep-edges.components", "1",  # the largest connected road network; islands are unusable
-        "--remove-edges.isolated", "true",
         "--osm.turn-lanes", "true",
         "--osm.all-attributes", "true",
         "--osm.extra-attributes", "maxspeed,source:maxspeed,maxspeed:type,zone:maxspeed,zone:traffic,oneway,turn:lanes,lanes",
@@ -178,6 +177,42 @@ def _minor_incoming(junction, signed: set[str]) -> list:
     return [e for e in incoming if e.getPriority() < top]
 
 
+# OSM turn:lanes arrows -> SUMO link directions they permit
+_ARROW_DIRS = {
+    "left": {"l", "t"}, "sharp_left": {"l", "t"}, "slight_left": {"L", "l", "s"}, "through": {"s"},
+    "right": {"r"}, "sharp_right": {"r"}, "slight_right": {"R", "r", "s"}, "reverse": {"t"},
+    "merge_to_left": {"s", "L"}, "merge_to_right": {"s", "R"},
+}  # fmt: skip
+
+
+def turn_lane_deletions(edge) -> list[str]:
+    """Connections that contradict the edge's OSM ``turn:lanes`` arrows (netconvert uses them only as a hint).
+
+    OSM lists lanes left to right, SUMO indexes them right to left. A connection is kept when its lane has
+    no arrow ("none"/empty), and an outgoing edge never loses its last connection.
+    """
+    tokens = edge.getParams().get("turn:lanes", "").split("|")
+    car_lanes = [lane for lane in edge.getLanes() if lane.allows("passenger")]
+    if len(tokens) != len(car_lanes) or len(car_lanes) != edge.getLaneNumber():
+        return []
+    allowed = []
+    for tok in reversed(tokens):
+        arrows = [a for a in tok.split(";") if a and a != "none"]
+        allowed.append(set().union(*(_ARROW_DIRS.get(a, {"s", "l", "r", "L", "R", "t"}) for a in arrows)) if arrows else None)
+    deletions = []
+    for to_edge, conns in sorted(edge.getOutgoing().items(), key=lambda kv: kv[0].getID()):
+        bad = [c for c in conns if allowed[c.getFromLane().getIndex()] is not None
+               and c.getDirection() not in allowed[c.getFromLane().getIndex()]]  # fmt: skip
+        if len(bad) == len(conns):
+            continue
+        for c in bad:
+            deletions.append(
+                f"    <delete from={quoteattr(edge.getID())} to={quoteattr(to_edge.getID())} "
+                f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}"/>'
+            )
+    return deletions
+
+
 def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path):
     """Write node / edge / connection patch files for pass 2; returns them and the sign summary."""
     junction_kind: dict[str, str] = {}
@@ -221,6 +256,9 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
                             f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}" '
                             f'speed="{behaviour.give_way_approach_speed_kmh / 3.6:.3f}"/>'
                         )
+    for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
+        if edge.getParams().get("turn:lanes"):
+            cons.extend(turn_lane_deletions(edge))
     tls_approaches = []
     for node in net.getNodes():
         if node.getType() != "traffic_light":
