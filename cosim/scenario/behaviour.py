@@ -2,8 +2,8 @@
 
 | paper rule | SUMO mapping | where SUMO differs |
 |---|---|---|
-| red light: stop 6 m before the junction | signalised approaches get ``endOffset`` = 6 m (stop line moved back) | none for SCVs; the ego's driver model reads the same stop line |
-| stop sign: halt (>= 2 frames), go if nobody approaches within 200 m | junction type ``priority_stop`` / ``allway_stop``; ``jmStopSignWait``; ``jmTimegapMinor`` = 200 m / reference major-road speed, capped at ``max_minor_time_gap_s`` | SUMO's gap acceptance is time-based and applies at every minor link, signed or not; the uncapped 14.4 s raised teleports on Krems from 4 % to 6 %, so the default cap is 3 s (set it to 15 for the literal rule) |
+| red light: stop 6 m before the junction | ``jmStoplineGap`` = 6 m (distance kept to a red light's stop line) | SUMO's stop line is at the junction's edge, so the 6 m are counted from there |
+| stop sign: halt (>= 2 frames), go if nobody approaches within 200 m | junction type ``priority_stop`` / ``allway_stop``; ``jmStopSignWait``; ``jmStoplineGapMinor`` = 1 m; ``jmTimegapMinor`` = 200 m / reference major-road speed, capped at ``max_minor_time_gap_s`` | SUMO's gap acceptance is time-based and applies at every minor link, signed or not; the uncapped 14.4 s raised teleports on Krems from 4 % to 6 %, so the default cap is 3 s (set it to 15 for the literal rule) |
 | give-way: slow to 5 km/h, stop if a vehicle approaches within 200 m | the give-way connections get a 5 km/h passage speed, so cars arrive at the line at 5 km/h; same gap rule | the 5 km/h also applies while crossing the junction |
 | keep a 2-s gap to the vehicle ahead | Krauss ``tau`` = 2 s | Krauss keeps *at least* tau; the paper cut speed by 80 % instead |
 | slow down in curves | netconvert ``--junctions.limit-turn-speed 5.5`` (lateral accel. on junction turns) | curves inside an edge do not lower the speed in SUMO |
@@ -44,6 +44,7 @@ class ScvBehaviour:
     reference_major_speed_mps: float = 13.89  # converts the clear distance into SUMO's time gap [m/s]
     max_minor_time_gap_s: float = 3.0  # cap: SUMO applies the gap at EVERY minor link, not only signed ones [s]
     give_way_approach_speed_kmh: float = 5.0  # [km/h]
+    stop_sign_stop_gap_m: float = 1.0  # where SCVs halt before a stop sign's line [m]
     stop_sign_wait_s: float = 1.0  # minimum standstill at a stop sign (paper: >= 2 frames) [s]
     accel_mps2: Dist = Dist(2.6, 0.4, 1.5, 3.5)  # max acceleration [m/s^2]
     decel_mps2: Dist = Dist(4.5, 0.6, 3.0, 6.5)  # comfortable max deceleration [m/s^2]
@@ -84,7 +85,8 @@ class ScvBehaviour:
                 f'tau="{self.time_gap_s:.3f}" sigma="{self.sigma:.3f}" minGap="{self.min_gap_m:.2f}" '
                 f'accel="{accel[i]:.3f}" decel="{decel[i]:.3f}" emergencyDecel="{max(decel[i], mu[i] * G):.3f}" '
                 f'mass="{mass[i]:.1f}" speedFactor="{speed_factor[i]:.3f}" '
-                f'jmTimegapMinor="{self.minor_time_gap_s:.2f}" jmStoplineGap="1.0" '
+                f'jmTimegapMinor="{self.minor_time_gap_s:.2f}" jmStoplineGap="{self.red_light_stop_gap_m:.2f}" '
+                f'jmStoplineGapMinor="{self.stop_sign_stop_gap_m:.2f}" '
                 f'jmStopSignWait="{self.stop_sign_wait_s:.2f}">'
                 f'<param key="friction" value="{mu[i]:.3f}"/></vType>'
             )

@@ -68,7 +68,7 @@ def _key(*parts) -> str:
 
 def _network_key(osm_sha: str, behaviour: ScvBehaviour) -> str:
     option_files = sorted((p.name, _sha256(p)) for p in OPTIONS_DIR.iterdir())
-    net_relevant = (behaviour.red_light_stop_gap_m, behaviour.give_way_approach_speed_kmh)
+    net_relevant = behaviour.give_way_approach_speed_kmh
     return _key(CACHE_FORMAT, osm_sha, option_files, pass1_options(Path("X"), Path("Y")), net_relevant, sumo_version())
 
 

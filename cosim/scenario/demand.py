@@ -100,9 +100,14 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     length = {e.getID(): e.getLength() for e in comp}
 
     def draw(n: int) -> list[tuple[str, str]]:
-        o = rng.choice(len(orig_ids), size=n, p=w_orig)
-        d = rng.integers(0, len(dest_ids), size=n)
-        return [(orig_ids[i], dest_ids[j]) for i, j in zip(o, d, strict=True) if orig_ids[i] != dest_ids[j]]
+        pairs: list[tuple[str, str]] = []
+        for _ in range(20):  # redraw the few pairs whose destination is their origin
+            o = rng.choice(len(orig_ids), size=n - len(pairs), p=w_orig)
+            d = rng.integers(0, len(dest_ids), size=n - len(pairs))
+            pairs += [(orig_ids[i], dest_ids[j]) for i, j in zip(o, d, strict=True) if orig_ids[i] != dest_ids[j]]
+            if len(pairs) == n or len(dest_ids) < 2:
+                break
+        return pairs
 
     def trip_time(edges) -> float:
         return sum(length[e] / (MEAN_SPEED_FRACTION * speed[e]) for e in edges)

@@ -4,8 +4,8 @@ Pass 1 imports the motorized road network with netconvert's own OSM support (lan
 maxspeed, one-ways, traffic signals). netconvert ignores ``highway=stop`` / ``highway=give_way``, so cosim
 maps those sign nodes (from the OSM pre-pass) onto the junctions and approaches they govern and pass 2
 patches the network: junction types (priority_stop / allway_stop / priority), the priority of signed
-approaches (so that they are the minor road), a 5 km/h passage on give-way connections, and the stop line
-of signalised approaches moved back so that SCVs halt 6 m before the junction at red (paper IV.B).
+approaches (so that they are the minor road), a 5 km/h passage on give-way connections, and connections
+that contradict OSM ``turn:lanes`` arrows are removed.
 """
 
 from __future__ import annotations
@@ -259,16 +259,8 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getParams().get("turn:lanes"):
             cons.extend(turn_lane_deletions(edge))
-    tls_approaches = []
-    for node in net.getNodes():
-        if node.getType() != "traffic_light":
-            continue
-        for edge in node.getIncoming():
-            if edge.getFunction() == "internal" or edge.getLength() < 2.5 * behaviour.red_light_stop_gap_m:
-                continue
-            tls_approaches.append(edge.getID())
-            attrs = edges.get(edge.getID(), "")
-            edges[edge.getID()] = f'{attrs} endOffset="{behaviour.red_light_stop_gap_m:.2f}"'.strip()
+    tls_approaches = [e.getID() for n in net.getNodes() if n.getType() == "traffic_light"
+                      for e in n.getIncoming() if e.getFunction() != "internal"]  # fmt: skip
     files = {
         "nod": workdir / "signs.nod.xml",
         "edg": workdir / "signs.edg.xml",

@@ -1,0 +1,106 @@
+"""The paper's SCV rules (IV.B) as SUMO runs them on a built scenario, checked in short libsumo runs."""
+
+from __future__ import annotations
+
+import libsumo
+import numpy as np
+import pytest
+from osm_factory import OsmSketch, crossroads
+
+from cosim.scenario import build_scenario
+from cosim.scenario.behaviour import ScvBehaviour
+from cosim.sumo_bridge.tools import binary
+
+
+def scenario(sketch: OsmSketch, tmp_path):
+    return build_scenario(sketch.write(tmp_path / "map.osm"), tmp_path / "scn", density="low", seed=3, log=lambda *a: None)
+
+
+def start(scn, tmp_path, vehicles: str):
+    """SUMO on the scenario's network with only the given vehicles, typed like the scenario's SCVs."""
+    routes = tmp_path / "test.rou.xml"
+    vtypes = ScvBehaviour(n_vtypes=1, sigma=0.0).vtype_distribution_xml(np.random.default_rng(0))
+    routes.write_text(f"<routes>\n{vtypes}\n{vehicles}\n</routes>\n")
+    libsumo.start([binary("sumo"), "-n", str(scn.net_file), "-r", str(routes), "--step-length", "0.1",
+                   "--no-warnings", "true", "--no-step-log", "true"])  # fmt: skip
+
+
+@pytest.fixture
+def sumo_closed():
+    yield
+    libsumo.close()
+
+
+def edges_between(net_file, sketch, a: str, b: str) -> str:
+    import sumolib
+
+    net = sumolib.net.readNet(str(net_file))
+    ida, idb = sketch.ids[a], sketch.ids[b]
+    for e in net.getEdges():
+        fa = e.getFromNode().getID().removeprefix("cluster_").split("_")
+        tb = e.getToNode().getID().removeprefix("cluster_").split("_")
+        if ida in fa and idb in tb:
+            return e.getID()
+    raise AssertionError(f"no edge {a}->{b}")
+
+
+def test_scv_halts_at_stop_sign_then_goes(tmp_path, sumo_closed):
+    sk = crossroads(centre_tags={"highway": "stop"})
+    scn = scenario(sk, tmp_path)
+    e_in, e_out = edges_between(scn.net_file, sk, "s", "c"), edges_between(scn.net_file, sk, "c", "n")
+    start(scn, tmp_path, f'<vehicle id="v" type="scv" depart="0" departSpeed="max"><route edges="{e_in} {e_out}"/></vehicle>')
+    speeds_near_line = []
+    passed = False
+    for _ in range(600):
+        libsumo.simulationStep()
+        if "v" not in libsumo.vehicle.getIDList():
+            break
+        if libsumo.vehicle.getRoadID("v") == e_in:
+            to_line = libsumo.lane.getLength(libsumo.vehicle.getLaneID("v")) - libsumo.vehicle.getLanePosition("v")
+            if to_line < 3.0:
+                speeds_near_line.append(libsumo.vehicle.getSpeed("v"))
+        elif libsumo.vehicle.getRoadID("v") == e_out:
+            passed = True
+    assert speeds_near_line and min(speeds_near_line) < 0.1, "the SCV must come to a halt at the stop line"
+    assert passed, "with nobody approaching it goes on"
+
+
+def test_scv_stops_6m_before_the_junction_at_red(tmp_path, sumo_closed):
+    sk = crossroads(centre_tags={"highway": "traffic_signals"})
+    scn = scenario(sk, tmp_path)
+    e_in = edges_between(scn.net_file, sk, "w", "c")
+    e_out = edges_between(scn.net_file, sk, "c", "e")
+    start(scn, tmp_path, f'<vehicle id="v" type="scv" depart="0" departSpeed="max"><route edges="{e_in} {e_out}"/></vehicle>')
+    (tls,) = libsumo.trafficlight.getIDList()
+    n = len(libsumo.trafficlight.getRedYellowGreenState(tls))
+    libsumo.trafficlight.setRedYellowGreenState(tls, "r" * n)
+    for _ in range(600):
+        libsumo.simulationStep()
+    assert libsumo.vehicle.getSpeed("v") < 0.05
+    lane = libsumo.vehicle.getLaneID("v")
+    gap_to_junction = libsumo.lane.getLength(lane) - libsumo.vehicle.getLanePosition("v")
+    assert gap_to_junction == pytest.approx(6.0, abs=1.0)
+
+
+def test_scv_keeps_about_two_seconds_behind_a_leader(tmp_path, sumo_closed):
+    sk = OsmSketch()
+    sk.node("a", -3000, 0)
+    sk.node("b", 3000, 0)
+    sk.node("c", 3000, 300)
+    sk.way(["a", "b"], highway="secondary", maxspeed="70", oneway="yes")
+    sk.way(["b", "c"], highway="residential")
+    scn = scenario(sk, tmp_path)
+    edge = edges_between(scn.net_file, sk, "a", "b")
+    start(scn, tmp_path,
+          f'<vehicle id="lead" type="scv" depart="0" departPos="80" departSpeed="12"><route edges="{edge}"/></vehicle>\n'
+          f'<vehicle id="f" type="scv" depart="0" departPos="0" departSpeed="12"><route edges="{edge}"/></vehicle>')  # fmt: skip
+    libsumo.simulationStep()
+    libsumo.vehicle.setSpeedMode("lead", 0)
+    libsumo.vehicle.setSpeed("lead", 12.0)
+    gaps = []
+    for i in range(900):
+        libsumo.simulationStep()
+        if i > 400:
+            leader = libsumo.vehicle.getLeader("f", 200)
+            gaps.append((leader[1] + 2.5) / libsumo.vehicle.getSpeed("f"))  # getLeader excludes minGap
+    assert np.mean(gaps) == pytest.approx(2.0, abs=0.3)
