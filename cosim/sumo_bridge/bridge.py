@@ -81,6 +81,12 @@ class SumoBridge:
         for c in sim.getCollisions():
             events.append(SumoEvent("collision", c.collider, f"with {c.victim} ({c.type}) on {c.lane}", c.colliderSpeed))
         self._read(world)
+        ego = world.slot_of.get(self.ego_id) if self.ego_id else None
+        if ego is not None:  # keepRoute=2 places an ego that left the road off-lane (empty lane id)
+            on_road = world.edge_code[ego] >= 0
+            if on_road != self.ego_on_road:
+                self.ego_on_road = on_road
+                events.append(SumoEvent("ego_on_road" if on_road else "ego_off_road", self.ego_id))
         return events
 
     def _read(self, world: World) -> None:
@@ -100,7 +106,9 @@ class SumoBridge:
             ac[slot] = get_acc(vid)
             lane = get_lane(vid)
             code = lane_cache.get(lane)
-            if code is None:
+            if code is None and not lane:
+                code = (-1, -1)  # off the road network (an ego placed off-road)
+            elif code is None:
                 edge, _, idx = lane.rpartition("_")
                 code = lane_cache[lane] = (intern_edge(edge), int(idx) if idx.isdigit() else -1)
             ec[slot], li[slot] = code
@@ -136,21 +144,15 @@ class SumoBridge:
                   lane_hint: int = -1) -> SumoEvent | None:  # fmt: skip
         """Place the ego (front-bumper pose) for the next SUMO step and tell followers its speed.
 
-        keepRoute=2 lets SUMO map the pose onto any lane; if that fails the ego is off the road: an
-        event, and the ego keeps its last mapped position in SUMO until it returns.
+        keepRoute=2 lets SUMO map the pose onto any lane (the driver may leave the route); a pose farther
+        than ``matchThreshold`` from every lane puts the ego off-road, which ``step`` reports as an event.
         """
         veh = self.sumo.vehicle
         try:
             veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=2, matchThreshold=5.0)
             veh.setPreviousSpeed(EGO_ID, max(0.0, speed_mps))
-        except Exception as exc:  # libsumo.TraCIException: no lane near the pose
-            if self.ego_on_road:
-                self.ego_on_road = False
-                return SumoEvent("ego_off_road", EGO_ID, str(exc).splitlines()[0][:200])
-            return None
-        if not self.ego_on_road:
-            self.ego_on_road = True
-            return SumoEvent("ego_on_road", EGO_ID)
+        except Exception as exc:  # libsumo.TraCIException: the pose could not be used at all
+            return SumoEvent("ego_write_failed", EGO_ID, str(exc).splitlines()[0][:200])
         return None
 
     def leader(self, vid: str, distance_m: float = 200.0) -> tuple[str, float] | None:
