@@ -8,6 +8,8 @@ from pathlib import Path
 from typing import Literal
 
 from cosim.config import from_dict, read_yaml
+from cosim.driver import DriverConfig
+from cosim.ego_mujoco import CarParams
 from cosim.errors import ConfigError
 from cosim.scenario import ScenarioConfig
 
@@ -56,8 +58,8 @@ class EgoConfig:
     route_length_m: float = 12000.0  # minimum length of an automatic route [m]
     depart_s: float = 5.0  # when the lead vehicle departs; the ego follows 3 s later [s]
     lead_vehicle: bool = True  # a SUMO vehicle on the same route, ahead of the ego, to follow
-    driver: Literal["scripted", "keyboard", "wheel"] = "scripted"
-    profile: str = "daily_commuter"
+    car: CarParams = field(default_factory=CarParams)  # the MuJoCo car (mass, tyres, power, brakes ...)
+    driver: DriverConfig = field(default_factory=DriverConfig)  # who drives: scripted profile, keyboard, wheel
 
     def __post_init__(self):
         if self.route_length_m <= 0 or self.depart_s < 0:

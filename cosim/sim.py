@@ -77,6 +77,7 @@ class Simulation:
         self.bridge: SumoBridge | None = None
         self._net = None
         self.ego_route: list[str] = []
+        self.ego = None  # the EgoController when MuJoCo drives the ego
         self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
         self.closed = False
         try:
@@ -86,6 +87,10 @@ class Simulation:
                 self._write_metadata()
             if config.ego.enabled:
                 self._setup_ego()
+                if config.ego.physics == "mujoco":
+                    from cosim.ego_loop import EgoController
+
+                    self.ego = EgoController(self)
             from cosim.log.recorder import attach_recorder
 
             if self.mcap is not None:

@@ -1,0 +1,172 @@
+"""Core loop cost: ``python -m bench.bench_core [--seconds 60] [--sizes 100 500 1000]``.
+
+The same Helsinki scenario (../shared/data/osm/helsinki.osm.gz) at about 100, 500 and 1000 simultaneous
+vehicles, stepped by (a) bare libsumo (only simulationStep), (b) the cosim core (snapshot read, ego as a
+SUMO vehicle, MCAP logging at the default rates), (c) the same core over TraCI/TCP. Each variant runs in
+its own process (libsumo runs one simulation per process), one after the other, so ratios come from one
+run of this script. Also compares ways to read the per-vehicle state: plain getters, subscriptions and a
+context subscription.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import os
+import tempfile
+import time
+from pathlib import Path
+
+HELSINKI = Path(__file__).resolve().parents[2] / "shared" / "data" / "osm" / "helsinki.osm.gz"
+LANE_KM = 45.84  # the Helsinki network's lane-km (report.json), for the density that gives N vehicles
+
+
+def _scenario(n: int, seed: int = 1):
+    from cosim.scenario import ScenarioConfig, build_scenario
+    from cosim.scenario.demand import DemandParams
+
+    cfg = ScenarioConfig(map=str(HELSINKI), demand=DemandParams(vehicles_per_lane_km=n / LANE_KM, horizon_s=3600))
+    return build_scenario(HELSINKI, config=cfg, seed=seed, log=lambda *a: None)
+
+
+def _warm_steps(seconds: float) -> int:
+    return round(seconds / 0.1)
+
+
+def bare(n: int, seconds: float, q) -> None:
+    import libsumo
+
+    from cosim.sumo_bridge.tools import binary
+
+    scn = _scenario(n)
+    libsumo.start([binary("sumo"), "-c", str(scn.sumocfg), "--no-warnings", "true", "--additional-files", str(scn.signs_file)])
+    for _ in range(_warm_steps(30)):
+        libsumo.simulationStep()
+    t0, c0 = time.perf_counter(), time.process_time()
+    counts = []
+    for _ in range(_warm_steps(seconds)):
+        libsumo.simulationStep()
+        counts.append(libsumo.vehicle.getIDCount())
+    q.put({"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "vehicles": sum(counts) / len(counts)})
+    libsumo.close()
+
+
+def core(n: int, seconds: float, q, traci: bool = False) -> None:
+    from cosim.runconfig import load_run_config
+    from cosim.sim import Simulation
+
+    scn = _scenario(n)
+    cfg = load_run_config(None, **{"scenario.map": str(HELSINKI), "ego.physics": "sumo", "seed": 1})
+    out = tempfile.mkdtemp()
+    sim = Simulation(cfg, out_dir=out, scenario=scn)
+    if traci:
+        sim.bridge.close()
+        from cosim.sumo_bridge.bridge import SumoBridge
+
+        sim.bridge = SumoBridge(scn.sumocfg, seed=1, step_s=0.1, traci=True)
+        sim._setup_ego()
+    with sim:
+        for _ in range(_warm_steps(30)):
+            sim.step()
+        t0, c0 = time.perf_counter(), time.process_time()
+        sim.run(seconds)
+        res = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "vehicles": sim.world.n_valid}
+    q.put(res)
+
+
+def readers(n: int, seconds: float, q) -> None:
+    """Per-step cost of reading x, y, angle, speed, accel, lane for all vehicles, three ways."""
+    import libsumo
+    import libsumo.constants as tc
+
+    from cosim.sumo_bridge.tools import binary
+
+    scn = _scenario(n)
+    libsumo.start([binary("sumo"), "-c", str(scn.sumocfg), "--no-warnings", "true", "--additional-files", str(scn.signs_file)])
+    for _ in range(_warm_steps(30)):
+        libsumo.simulationStep()
+    veh = libsumo.vehicle
+    variables = [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LANE_ID]
+    steps = _warm_steps(min(seconds, 10))
+    out = {}
+    # plain getters
+    t = 0.0
+    for _ in range(steps):
+        libsumo.simulationStep()
+        t0 = time.perf_counter()
+        for v in veh.getIDList():
+            veh.getPosition(v), veh.getAngle(v), veh.getSpeed(v), veh.getAcceleration(v), veh.getLaneID(v)
+        t += time.perf_counter() - t0
+    out["getters_ms"] = 1000 * t / steps
+    # per-vehicle subscriptions
+    t = 0.0
+    for _ in range(steps):
+        libsumo.simulationStep()
+        t0 = time.perf_counter()
+        for v in libsumo.simulation.getDepartedIDList():
+            veh.subscribe(v, variables)
+        for v in veh.getIDList():
+            if not veh.getSubscriptionResults(v):
+                veh.subscribe(v, variables)
+        veh.getAllSubscriptionResults()
+        t += time.perf_counter() - t0
+    out["subscriptions_ms"] = 1000 * t / steps
+    for v in veh.getIDList():
+        veh.unsubscribe(v)
+    # one context subscription around a junction covering the whole network
+    j = libsumo.junction.getIDList()[0]
+    libsumo.junction.subscribeContext(j, tc.CMD_GET_VEHICLE_VARIABLE, 1e5, variables)
+    t = 0.0
+    for _ in range(steps):
+        libsumo.simulationStep()
+        t0 = time.perf_counter()
+        libsumo.junction.getContextSubscriptionResults(j)
+        t += time.perf_counter() - t0
+    out["context_ms"] = 1000 * t / steps
+    out["vehicles"] = veh.getIDCount()
+    q.put(out)
+    libsumo.close()
+
+
+def _in_process(fn, *args):
+    q = mp.get_context("spawn").Queue()
+    p = mp.get_context("spawn").Process(target=fn, args=(*args, q))
+    p.start()
+    res = q.get()
+    p.join()
+    return res
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 500, 1000])
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    rows = []
+    for n in args.sizes:
+        _scenario(n)  # build once (cached) outside the timings
+        b = _in_process(bare, n, args.seconds)
+        c = _in_process(core, n, args.seconds)
+        t = _in_process(core, n, args.seconds, True) if n <= 500 or os.environ.get("BENCH_TRACI_ALL") else None
+        r = _in_process(readers, n, args.seconds)
+        rows.append({"target": n, "vehicles": round(b["vehicles"]), "bare_ms_per_sim_s": 1000 * b["wall_s"] / args.seconds,
+                     "core_ms_per_sim_s": 1000 * c["wall_s"] / args.seconds,
+                     "traci_ms_per_sim_s": 1000 * t["wall_s"] / args.seconds if t else None,
+                     **{k: v for k, v in r.items() if k.endswith("_ms")}})  # fmt: skip
+    if args.json:
+        print(json.dumps(rows))
+        return
+    print(f"| vehicles | bare SUMO [ms/sim s] | cosim core [ms/sim s] | core / bare | core over TraCI [ms/sim s] | libsumo / TraCI | read: getters / subscriptions / context [ms/step] |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        tr = f"{r['traci_ms_per_sim_s']:.0f}" if r["traci_ms_per_sim_s"] else "-"
+        ratio_t = f"{r['core_ms_per_sim_s'] / r['traci_ms_per_sim_s']:.2f}" if r["traci_ms_per_sim_s"] else "-"
+        print(f"| {r['vehicles']} | {r['bare_ms_per_sim_s']:.0f} | {r['core_ms_per_sim_s']:.0f} | "
+              f"{r['core_ms_per_sim_s'] / r['bare_ms_per_sim_s']:.2f} | {tr} | {ratio_t} | "
+              f"{r['getters_ms']:.2f} / {r['subscriptions_ms']:.2f} / {r['context_ms']:.2f} |")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

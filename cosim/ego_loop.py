@@ -1,0 +1,243 @@
+"""The ego in the loop: what its driver perceives, how MuJoCo moves it, and its write-back into SUMO.
+
+Hooks (ARCHITECTURE.md phase order): ``driver`` builds the Percept from the snapshot and SUMO's view of
+the ego (leader, next light), and asks the driver; ``ego`` integrates the MuJoCo car for one SUMO step;
+``writeback`` places the ego in SUMO (moveToXY + speed) for the next step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cosim import frames
+from cosim.driver import Controls, Percept, make_driver
+from cosim.sumo_bridge.bridge import EGO_ID
+
+PREVIEW_BEHIND_M = 5.0
+PREVIEW_AHEAD_M = 160.0
+CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
+LANE_CHANGE_LENGTH_M = 30.0
+
+
+@dataclass(frozen=True)
+class StopLine:
+    s_m: float  # arc position of the stop line on the route path [m]
+    junction: str
+    state: str  # SUMO link state of the route's connection ('M','m','s','w','=', ...)
+    xy: tuple[float, float]  # junction centre
+
+
+class RoutePath:
+    """The route as one lane centre-line polyline with arc lengths, its stop lines and speed limits."""
+
+    def __init__(self, net, route: list[str]):
+        pts: list[tuple[float, float]] = []
+        self.stop_lines: list[StopLine] = []
+        limits: list[tuple[float, float]] = []  # (s where it starts, speed)
+        entry_lane = None
+        for i, eid in enumerate(route):
+            edge = net.getEdge(eid)
+            nxt = net.getEdge(route[i + 1]) if i + 1 < len(route) else None
+            conns = [c for c in edge.getOutgoing().get(nxt, [])] if nxt else []
+            conns = sorted(conns, key=lambda c: c.getFromLane().getIndex())
+            lane = conns[0].getFromLane() if conns else (entry_lane or edge.getLane(0))
+            shape = [tuple(p[:2]) for p in lane.getShape()]
+            if entry_lane is not None and entry_lane is not lane and pts:  # change lanes early on the edge
+                shape = _trim_start(shape, min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength()))
+            s0 = _extend(pts, shape)
+            limits.append((s0, lane.getSpeed()))
+            if conns:
+                c = conns[0]
+                node = edge.getToNode()
+                self.stop_lines.append(StopLine(_length(pts), node.getID(), c.getState(), tuple(node.getCoord()[:2])))
+                via = c.getViaLaneID()
+                if via:
+                    _extend(pts, [tuple(p[:2]) for p in net.getLane(via).getShape()])
+                entry_lane = c.getToLane()
+        xy = np.asarray(pts, dtype=np.float64)
+        keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
+        self.xy = xy[keep]
+        self.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.xy, axis=0).T))])
+        self.length_m = float(self.s[-1])
+        self.limit_s = np.asarray([a for a, _ in limits])
+        self.limit_v = np.asarray([b for _, b in limits])
+        self._hint = 0
+
+    def project(self, x: float, y: float) -> tuple[float, float]:
+        """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit."""
+        lo = max(0, self._hint - 20)
+        hi = min(len(self.xy) - 1, self._hint + 200)
+        a, b = self.xy[lo:hi], self.xy[lo + 1 : hi + 1]
+        d = b - a
+        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+        t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
+        px, py = a[:, 0] + t * d[:, 0], a[:, 1] + t * d[:, 1]
+        dist2 = (px - x) ** 2 + (py - y) ** 2
+        k = int(np.argmin(dist2))
+        if k in (0, len(dist2) - 1) and dist2[k] > 400.0 and len(self.xy) > 220:  # lost: search everywhere
+            self._hint = 0
+            return self._project_all(x, y)
+        self._hint = lo + k
+        cross = d[k, 0] * (y - a[k, 1]) - d[k, 1] * (x - a[k, 0])
+        return float(self.s[lo + k] + t[k] * math.sqrt(seg2[k])), math.copysign(math.sqrt(dist2[k]), cross)
+
+    def _project_all(self, x: float, y: float) -> tuple[float, float]:
+        a, b = self.xy[:-1], self.xy[1:]
+        d = b - a
+        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+        t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
+        dist2 = (a[:, 0] + t * d[:, 0] - x) ** 2 + (a[:, 1] + t * d[:, 1] - y) ** 2
+        k = int(np.argmin(dist2))
+        self._hint = k
+        cross = d[k, 0] * (y - a[k, 1]) - d[k, 1] * (x - a[k, 0])
+        return float(self.s[k] + t[k] * math.sqrt(seg2[k])), math.copysign(math.sqrt(dist2[k]), cross)
+
+    def window(self, s_from: float, s_to: float) -> np.ndarray:
+        s_from, s_to = max(0.0, s_from), min(self.length_m, s_to)
+        inside = (self.s > s_from) & (self.s < s_to)
+        ends = np.stack([np.interp([s_from, s_to], self.s, self.xy[:, 0]), np.interp([s_from, s_to], self.s, self.xy[:, 1])], axis=1)
+        out = np.vstack([ends[:1], self.xy[inside], ends[1:]])
+        return out if len(out) >= 2 else np.vstack([out, out + 0.1])
+
+    def speed_limit(self, s: float) -> tuple[float, float | None, float]:
+        """(limit here, next different limit or None, distance to it)."""
+        i = max(0, int(np.searchsorted(self.limit_s, s, side="right")) - 1)
+        here = float(self.limit_v[i])
+        for j in range(i + 1, len(self.limit_v)):
+            if abs(self.limit_v[j] - here) > 0.1:
+                return here, float(self.limit_v[j]), float(self.limit_s[j] - s)
+        return here, None, math.inf
+
+
+def _length(pts) -> float:
+    return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False))) if len(pts) > 1 else 0.0
+
+
+def _extend(pts: list, shape: list) -> float:
+    s0 = _length(pts)
+    pts.extend(shape)
+    return s0
+
+
+def _trim_start(shape: list, dist: float) -> list:
+    acc = 0.0
+    for i in range(1, len(shape)):
+        seg = math.dist(shape[i - 1], shape[i])
+        if acc + seg >= dist:
+            f = (dist - acc) / seg if seg else 0.0
+            p = (shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]), shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]))
+            return [p, *shape[i:]]
+        acc += seg
+    return shape[-1:]
+
+
+_SIGN_OF_STATE = {"s": "stop", "w": "stop", "m": "give_way", "=": "give_way"}
+_TLS = {"g": "g", "G": "g", "y": "y", "Y": "y", "u": "y", "r": "r", "R": "r", "s": "r"}
+
+
+class EgoController:
+    """Owns the MuJoCo car and the driver; plugs into the driver / ego / writeback phases."""
+
+    def __init__(self, sim):
+        from cosim.ego_mujoco import EgoCar
+
+        self.sim = sim
+        cfg = sim.config.ego
+        self.car = EgoCar(cfg.car, timestep_s=sim.config.timing.physics_timestep_s)
+        self.path = RoutePath(sim.net, sim.ego_route)
+        p = cfg.car
+        self.driver = make_driver(cfg.driver, np.random.default_rng([sim.config.seed, 11]),
+                                  math.radians(p.max_steer_deg), p.wheelbase_m)  # fmt: skip
+        self.origin: tuple[float, float] | None = None
+        self.controls = Controls()
+        self.started = False
+        self.percept: Percept | None = None
+        self._passed_signs: set[int] = set()
+        sim.add_hook("driver", self.drive)
+        sim.add_hook("ego", self.integrate)
+        sim.add_hook("writeback", self.write_back)
+
+    def _start(self, w, slot: int) -> None:
+        cx, cy, yaw = frames.sumo_to_mujoco(w.x_m[slot], w.y_m[slot], w.heading_deg[slot], self.car.params.length_m)
+        self.origin = (float(cx), float(cy))
+        self.car.reset(0.0, 0.0, float(yaw), float(w.speed_mps[slot]))
+        self.started = True
+
+    def drive(self, sim) -> None:
+        w = sim.world
+        slot = w.slot_of.get(EGO_ID)
+        if slot is None:
+            return
+        if not self.started:
+            self._start(w, slot)
+        st = self.car.state()
+        cx, cy = st.x_m + self.origin[0], st.y_m + self.origin[1]
+        s_c, _ = self.path.project(cx, cy)
+        s_front = s_c + 0.5 * self.car.params.length_m
+        limit, next_limit, next_dist = self.path.speed_limit(s_front)
+        kw = {}
+        lead = sim.bridge.leader(EGO_ID, PREVIEW_AHEAD_M)
+        if lead and lead[0] in w.slot_of:
+            gap = lead[1] + sim.bridge.sumo.vehicle.getMinGap(EGO_ID)
+            kw.update(leader_present=True, leader_id=lead[0], leader_gap_m=max(0.0, gap),
+                      leader_speed_mps=float(w.speed_mps[w.slot_of[lead[0]]]))  # fmt: skip
+        tls = sim.bridge.next_tls(EGO_ID)
+        if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
+            kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
+        for i, line in enumerate(self.path.stop_lines):
+            if line.s_m < s_front - 1.0 or i in self._passed_signs:
+                continue
+            if line.s_m - s_front > 300.0:
+                break
+            kind = _SIGN_OF_STATE.get(line.state)
+            if kind:
+                kw.update(sign_kind=kind, sign_dist_m=max(0.0, line.s_m - s_front), sign_id=line.junction,
+                          junction_conflict=self._conflict(w, line, slot))  # fmt: skip
+                break
+        adas = sim.outputs.get("adas_displays", {})
+        self.percept = Percept(
+            t_s=w.t_s, speed_mps=st.speed_mps, x_m=cx, y_m=cy, yaw_rad=st.yaw_rad, accel_mps2=st.accel_mps2,
+            yaw_rate_rps=st.yaw_rate_rps, path_xy_m=self.path.window(s_c - PREVIEW_BEHIND_M, s_c + PREVIEW_AHEAD_M),
+            speed_limit_mps=limit, next_speed_limit_mps=next_limit, next_speed_limit_dist_m=next_dist,
+            route_end_dist_m=max(0.0, self.path.length_m - s_front), **kw, **adas,
+        )  # fmt: skip
+        self.controls = self.driver.act(self.percept, sim.step_s)
+
+    def _conflict(self, w, line: StopLine, ego_slot: int) -> bool:
+        """A vehicle other than the ego heads for the junction from within 200 m (paper IV.B)."""
+        jx, jy = line.xy
+        v = w.valid.copy()
+        v[ego_slot] = False
+        dx, dy = jx - w.x_m, jy - w.y_m
+        dist = np.hypot(dx, dy)
+        ux, uy = w.heading_unit()
+        approaching = v & (dist < CONFLICT_RADIUS_M) & (dist > 3.0) & (w.speed_mps > 0.5) & ((dx * ux + dy * uy) > 0.7 * dist)
+        same_edge = w.edge_code == w.edge_code[ego_slot]
+        return bool(np.any(approaching & ~same_edge))
+
+    def integrate(self, sim) -> None:
+        if not self.started:
+            return
+        c = self.controls
+        self.car.step(c.throttle, c.brake, c.steer, sim.step_s)
+
+    def write_back(self, sim) -> None:
+        if not self.started:
+            return
+        st = self.car.state()
+        x, y, angle = st.to_sumo(self.origin)
+        ev = sim.bridge.write_ego(x, y, angle, st.speed_mps)
+        if ev:
+            sim.events.append(ev)
+        p = self.percept
+        sim.outputs["ego_log"] = {
+            "throttle": round(self.controls.throttle, 4), "brake": round(self.controls.brake, 4),
+            "steer": round(self.controls.steer, 4), "physics_speed_mps": round(st.speed_mps, 4),
+            "path_offset_m": round(p.lateral_error_m, 4) if p else None,
+            "leader_id": p.leader_id if p else None,
+            "leader_gap_m": round(p.leader_gap_m, 3) if p and p.leader_present else None,
+            "tls_state": p.tls_state if p else None,
+        }  # fmt: skip
