@@ -133,7 +133,13 @@ def _in_process(fn, *args):
     q = mp.get_context("spawn").Queue()
     p = mp.get_context("spawn").Process(target=fn, args=(*args, q))
     p.start()
-    res = q.get()
+    while True:  # a child that dies without answering must not hang the benchmark
+        try:
+            res = q.get(timeout=5)
+            break
+        except Exception:
+            if not p.is_alive():
+                raise RuntimeError(f"{fn.__name__} failed (exit code {p.exitcode})") from None
     p.join()
     return res
 

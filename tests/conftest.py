@@ -4,9 +4,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-SHARED_OSM = ROOT.parent / "shared" / "data" / "osm"
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).parent))  # tests/osm_factory.py, tests/testpaths.py
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -19,11 +17,3 @@ def _cache_dir(tmp_path_factory):
     os.environ["COSIM_CACHE_DIR"] = str(path)
     yield path
 
-
-def shared_map(name: str) -> Path:
-    path = SHARED_OSM / f"{name}.osm.gz"
-    if not path.exists():
-        path = ROOT / "configs" / "maps" / f"{name}.osm.gz"
-    if not path.exists():
-        pytest.skip(f"{name}.osm.gz is not available (../shared/data/osm missing)")
-    return path

@@ -59,7 +59,10 @@ class McapLog:
     def write(self, topic: str, t_s: float, message: dict) -> None:
         """Append one message; log time = simulated time (so the file is deterministic)."""
         ns = round(t_s * 1e9)
-        data = json.dumps(_clean(message), separators=(",", ":"), allow_nan=False).encode()
+        try:
+            data = json.dumps(message, separators=(",", ":"), allow_nan=False).encode()
+        except ValueError:  # a NaN/inf somewhere: the rare slow path
+            data = json.dumps(_clean(message), separators=(",", ":"), allow_nan=False).encode()
         self._writer.add_message(self.channel(topic), log_time=ns, data=data, publish_time=ns, sequence=self.count)
         self.count += 1
         now = time.monotonic()

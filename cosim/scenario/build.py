@@ -177,14 +177,16 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
             raise CosimError(str(exc)) from None
     osm_path = Path(osm_path)
     t_start = time.perf_counter()
-    osm = read_osm(osm_path)  # validates: missing / truncated / not OSM / no roads -> CosimError
+    if not osm_path.is_file():
+        raise CosimError(f"OSM file {osm_path} does not exist")
     osm_sha = _sha256(osm_path)
     root = cache_dir()
     net_key = _network_key(osm_sha, config.behaviour)
     scn_key = _key(net_key, to_dict(demand), to_dict(config.behaviour), seed)
     scn_dir = root / "scenarios" / scn_key
-    cached = (scn_dir / "report.json").exists()
+    cached = (scn_dir / "report.json").exists()  # only complete, valid builds are ever published
     if not cached:
+        osm = read_osm(osm_path)  # validates: truncated / not OSM / no roads -> CosimError
         net_dir = root / "networks" / net_key
         net_hit = (net_dir / "network.json").exists()
         if not net_hit:

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from cosim.errors import CosimError
 from cosim.sumo_bridge.tools import binary
 from cosim.world import World
@@ -18,8 +20,8 @@ EGO_ID = "ego"
 LEAD_ID = "lead"
 
 
-def _backend(gui: bool):
-    if gui:
+def _backend(use_traci: bool):
+    if use_traci:
         import traci
 
         return traci
@@ -37,9 +39,11 @@ class SumoEvent:
 
 
 class SumoBridge:
-    def __init__(self, sumocfg, *, seed: int, step_s: float, gui: bool = False, extra_args: tuple[str, ...] = ()):
+    def __init__(self, sumocfg, *, seed: int, step_s: float, gui: bool = False, traci: bool = False,
+                 extra_args: tuple[str, ...] = ()):  # fmt: skip
+        """``gui`` watches the run in sumo-gui (over TraCI); ``traci`` uses TCP without a GUI (benchmarks)."""
         self.gui = gui
-        self.sumo = _backend(gui)
+        self.sumo = _backend(gui or traci)
         cmd = [binary("sumo-gui" if gui else "sumo"), "-c", str(sumocfg), "--seed", str(seed),
                "--step-length", f"{step_s:g}", "--no-warnings", "true", "--no-step-log", "true",
                "--collision.check-junctions", "true", "--collision.action", "warn",
@@ -53,7 +57,7 @@ class SumoBridge:
             raise CosimError(f"SUMO could not start the scenario {sumocfg}: {exc}") from None
         self.step_s = step_s
         self.open = True
-        self._length: dict[str, float] = {}
+        self._lane_codes: dict[str, tuple[int, int]] = {}
         self.ego_id: str | None = None
         self.ego_on_road = True
 
@@ -90,31 +94,39 @@ class SumoBridge:
         return events
 
     def _read(self, world: World) -> None:
+        """All vehicles' pose, speed, acceleration and lane with one pass of plain getters per quantity.
+
+        ``map`` over the getters and one numpy assignment per field keep the per-vehicle Python overhead
+        small; lane position, lateral offset and signals are read for the ego only (nothing else uses them).
+        """
         veh = self.sumo.vehicle
-        get_pos, get_angle, get_speed, get_acc = veh.getPosition, veh.getAngle, veh.getSpeed, veh.getAcceleration
-        get_lane, get_lane_pos, get_lat, get_sig = veh.getLaneID, veh.getLanePosition, veh.getLateralLanePosition, veh.getSignals
-        x, y, hd, sp, ac = world.x_m, world.y_m, world.heading_deg, world.speed_mps, world.accel_mps2
-        lp, lat, sig, ec, li = world.lane_pos_m, world.lateral_offset_m, world.signals, world.edge_code, world.lane_index
-        intern_edge = world.intern_edge
-        lane_cache: dict[str, tuple[int, int]] = {}
-        for slot, vid in enumerate(world.ids):
-            if vid is None:
-                continue
-            x[slot], y[slot] = get_pos(vid)
-            hd[slot] = get_angle(vid)
-            sp[slot] = get_speed(vid)
-            ac[slot] = get_acc(vid)
-            lane = get_lane(vid)
-            code = lane_cache.get(lane)
-            if code is None and not lane:
-                code = (-1, -1)  # off the road network (an ego placed off-road)
-            elif code is None:
-                edge, _, idx = lane.rpartition("_")
-                code = lane_cache[lane] = (intern_edge(edge), int(idx) if idx.isdigit() else -1)
-            ec[slot], li[slot] = code
-            lp[slot] = get_lane_pos(vid)
-            lat[slot] = get_lat(vid)
-            sig[slot] = get_sig(vid)
+        ids = [v for v in world.ids if v is not None]
+        if not ids:
+            return
+        slots = np.fromiter((world.slot_of[v] for v in ids), dtype=np.intp, count=len(ids))
+        xy = np.array(list(map(veh.getPosition, ids)), dtype=np.float64)
+        world.x_m[slots] = xy[:, 0]
+        world.y_m[slots] = xy[:, 1]
+        world.heading_deg[slots] = np.fromiter(map(veh.getAngle, ids), np.float64, len(ids))
+        world.speed_mps[slots] = np.fromiter(map(veh.getSpeed, ids), np.float64, len(ids))
+        world.accel_mps2[slots] = np.fromiter(map(veh.getAcceleration, ids), np.float64, len(ids))
+        lanes = list(map(veh.getLaneID, ids))
+        cache = self._lane_codes
+        codes = [cache.get(lane) or self._lane_code(world, lane) for lane in lanes]
+        world.edge_code[slots] = [c[0] for c in codes]
+        world.lane_index[slots] = [c[1] for c in codes]
+        ego = world.slot_of.get(self.ego_id) if self.ego_id else None
+        if ego is not None:
+            world.lane_pos_m[ego] = veh.getLanePosition(self.ego_id)
+            world.lateral_offset_m[ego] = veh.getLateralLanePosition(self.ego_id)
+            world.signals[ego] = veh.getSignals(self.ego_id)
+
+    def _lane_code(self, world: World, lane: str) -> tuple[int, int]:
+        if not lane:
+            return (-1, -1)  # off the road network (an ego placed off-road); not cached
+        edge, _, idx = lane.rpartition("_")
+        code = self._lane_codes[lane] = (world.intern_edge(edge), int(idx) if idx.isdigit() else -1)
+        return code
 
     def traffic_lights(self) -> tuple[list[str], list[str]]:
         tls = self.sumo.trafficlight

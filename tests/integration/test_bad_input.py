@@ -8,7 +8,7 @@ import subprocess
 import sys
 
 import pytest
-from conftest import shared_map
+from testpaths import shared_map
 from osm_factory import OsmSketch
 
 

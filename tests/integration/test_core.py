@@ -11,7 +11,7 @@ import time
 
 import libsumo
 import pytest
-from conftest import shared_map
+from testpaths import shared_map
 from osm_factory import OsmSketch
 
 from cosim.log import read

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from conftest import shared_map
+from testpaths import shared_map
 
 from cosim.scenario import build_scenario
 

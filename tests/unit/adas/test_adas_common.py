@@ -1,0 +1,71 @@
+"""Shared geometry of the assistance systems: headings, gaps, building line of sight, events."""
+
+from __future__ import annotations
+
+import pytest
+import shapely
+
+from cosim.adas import BuildingIndex, VehicleState, along_heading_gap_m
+from cosim.adas.common import EventRecorder, heading_unit, left_unit
+from cosim.world import World
+
+
+def test_heading_units_follow_sumo_compass():
+    assert heading_unit(0.0) == pytest.approx((0.0, 1.0))
+    assert heading_unit(90.0) == pytest.approx((1.0, 0.0))
+    assert heading_unit(180.0) == pytest.approx((0.0, -1.0))
+    assert left_unit(0.0) == pytest.approx((-1.0, 0.0))
+    assert left_unit(90.0) == pytest.approx((0.0, 1.0))
+
+
+def test_rear_point_and_gap():
+    v = VehicleState(10.0, 20.0, 90.0, 5.0, 4.0)
+    assert v.rear_xy() == pytest.approx((6.0, 20.0))
+    # ego heading east at the origin: the rear point (6, 20) is 6 m ahead along the heading
+    assert along_heading_gap_m(0.0, 0.0, 90.0, 6.0, 20.0) == pytest.approx(6.0)
+    assert along_heading_gap_m(0.0, 0.0, 270.0, 6.0, 20.0) == pytest.approx(-6.0)
+
+
+def test_from_world():
+    w = World(capacity=4)
+    s = w.add("lead")
+    w.x_m[s], w.y_m[s], w.heading_deg[s], w.speed_mps[s], w.length_m[s], w.accel_mps2[s] = (
+        1,
+        2,
+        45,
+        7,
+        4.5,
+        -1,
+    )
+    v = VehicleState.from_world(w, s)
+    assert v == VehicleState(1.0, 2.0, 45.0, 7.0, 4.5, -1.0)
+    with pytest.raises(ValueError, match="slot 3"):
+        VehicleState.from_world(w, 3)
+
+
+def test_building_index_line_of_sight():
+    idx = BuildingIndex([shapely.box(0, 0, 10, 10), shapely.box(20, 0, 30, 10)])
+    assert len(idx) == 2
+    assert idx.line_of_sight(-5, 12, 35, 12)  # passes above both
+    assert not idx.line_of_sight(-5, 5, 15, 5)  # through the first
+    assert not idx.line_of_sight(15, -5, 25, 5)  # clips the second's corner
+    assert idx.line_of_sight(12, -5, 18, 15)  # between them
+    assert not idx.line_of_sight(-5, 10, 35, 10)  # grazing a wall counts as blocked
+    assert BuildingIndex().line_of_sight(0, 0, 1, 1)
+
+
+def test_vehicle_state_validation():
+    with pytest.raises(ValueError, match="finite"):
+        VehicleState(float("inf"), 0.0, 0.0, 0.0, 4.0)
+    with pytest.raises(ValueError, match="length_m"):
+        VehicleState(0.0, 0.0, 0.0, 0.0, -1.0)
+
+
+def test_event_recorder():
+    rec = EventRecorder("B")
+    rec.record(0.5, "level", "none", "warning", 1.5)
+    rec.record(0.7, "level", "warning", "none", 3.5)
+    assert [e.t_s for e in rec.pop_events()] == [0.5, 0.7]
+    assert rec.pop_events() == []
+    rec.record(0.9, "data", "ok", "stale", None)
+    assert [e.kind for e in rec.pop_events()] == ["data"] and len(rec.events) == 3
