@@ -1,0 +1,524 @@
+"""Self-Organised TDMA (ITU-R M.1371 Annex 2 §3.3, as proposed for vehicular networks by Bilstrup et al.).
+
+Time is cut into frames (default 1 s) of N slots. One slot carries the largest CAM the CAM parameters can
+produce plus the lower-layer headers at the PHY bit rate, plus a guard:
+
+* air time: IEEE 802.11p OFDM, 10 MHz channel: preamble 32 us + SIGNAL 8 us + ceil((16 + 8 L + 6) / N_DBPS)
+  symbols of 8 us, N_DBPS = bit rate x 8 us (48 bit at 6 Mbit/s); other widths scale these times by 10/MHz;
+* L = CAM + ``mac_overhead_bytes`` (80 B: MAC header 24, LLC/SNAP 8, GeoNetworking basic+common+single-hop
+  broadcast 40, BTP-B 4, FCS 4; no security header);
+* guard 32 us (SIFS at 10 MHz): covers propagation (3.3 us/km), rx/tx turnaround and timing error.
+With the default CAM parameters (243 B max) a slot lasts 512 us and a 1-s frame has 1953 slots.
+
+Phases per station (each keeps its own slot map, built only from messages it decoded, so hidden terminals
+arise naturally: a station cannot know slots used by stations it cannot hear):
+
+1. initialization: listen for ``listen_frames`` frames (1; the paper skipped this phase, set 0 for that);
+2. network entry + first frame: report rate r (slots per frame) -> nominal increment NI = N // r; nominal
+   start slot NSS drawn uniformly within the next NI slots; nominal slots NS_j = NSS + j NI; each NS_j gets
+   a selection interval SI = NS_j +- floor(``selection_interval_frac`` x NI) (+-10 %); inside it a slot is
+   drawn uniformly from the candidate set and kept for a timeout drawn from U{3..7} frames. During the
+   first frame every transmission announces the offset to the station's next slot (so neighbours learn the
+   new reservations before they are used);
+3. continuous operation: every use of a slot announces its remaining timeout and then counts it down; at
+   timeout 0 the station picks a new slot in the same SI of the next frame and announces its offset in
+   that last transmission.
+
+Candidate set (ITU-R M.1371): the free slots of the SI (by the station's own map); when fewer than
+``min_candidates`` (4) are free, the set is filled with slots reserved by the farthest stations heard; when
+none is free at all, the slot of the farthest station is reused (issue 5's rule).
+
+Report rate follows the CAM generation rate: r = clamp(ceil(frame / T_GenCam), 1, ``max_report_rate``),
+applied at once when it rises and when it falls to half or less (hysteresis against CAM-interval jitter).
+A station keeps its reservations and adds slots (each new nominal slot in the middle of the largest gap
+between its nominal slots) or drops an evenly spread subset; the first frame after a change announces
+offsets like the first frame after entry. This is our reading: ITU-R M.1371 changes the reporting
+interval through ITDMA, which is not modelled.
+A reserved slot with no fresh CAM stays silent (its timeout still counts down); a CAM waits at most one NI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SotdmaParams:
+    """Frame structure and SOTDMA access parameters."""
+
+    frame_s: float = 1.0  # frame length [s]
+    bit_rate_mbps: float = 6.0  # PHY data rate [Mbit/s] (QPSK 1/2 at 10 MHz)
+    channel_mhz: float = 10.0  # channel width [MHz]; sets the OFDM timing
+    guard_us: int = 32  # guard time per slot [us]
+    mac_overhead_bytes: int = 80  # headers added to each CAM below the facilities layer [B]
+    n_slots: int | None = None  # slots per frame; None = as many slots of the largest CAM as fit
+    selection_interval_frac: float = 0.1  # SI half-width as a fraction of NI (+-10 %)
+    min_candidates: int = 4  # minimum candidate-set size
+    timeout_min_frames: int = 3  # slot timeout drawn from U{min..max} frames
+    timeout_max_frames: int = 7
+    max_report_rate: int = 10  # reports per frame at most (10 Hz CAMs)
+    listen_frames: int = 1  # initialization phase length [frames]
+
+    def __post_init__(self) -> None:
+        if not self.frame_s > 0:
+            raise ValueError("sotdma.frame_s must be > 0")
+        if abs(self.frame_s * 1e6 - round(self.frame_s * 1e6)) > 1e-6:
+            raise ValueError("sotdma.frame_s must be a whole number of microseconds")
+        if not self.bit_rate_mbps > 0 or not self.channel_mhz > 0:
+            raise ValueError("sotdma.bit_rate_mbps and sotdma.channel_mhz must be > 0")
+        ndbps = self.bit_rate_mbps * 1e6 * self.symbol_us * 1e-6
+        if abs(ndbps - round(ndbps)) > 1e-6 or round(ndbps) < 1:
+            raise ValueError(
+                f"sotdma.bit_rate_mbps = {self.bit_rate_mbps} gives {ndbps:g} data bits per OFDM symbol at "
+                f"{self.channel_mhz} MHz; use an 802.11 rate (e.g. 3, 4.5, 6, 9, 12, 18, 24, 27 at 10 MHz)"
+            )
+        if self.guard_us < 0 or self.mac_overhead_bytes < 0:
+            raise ValueError("sotdma.guard_us and sotdma.mac_overhead_bytes must be >= 0")
+        if self.n_slots is not None and self.n_slots < 1:
+            raise ValueError("sotdma.n_slots must be >= 1 (or null for automatic sizing)")
+        if not 0 <= self.selection_interval_frac <= 0.5:
+            raise ValueError("sotdma.selection_interval_frac must be in [0, 0.5]")
+        if self.min_candidates < 1:
+            raise ValueError("sotdma.min_candidates must be >= 1")
+        if not 0 <= self.timeout_min_frames <= self.timeout_max_frames:
+            raise ValueError("sotdma: need 0 <= timeout_min_frames <= timeout_max_frames")
+        if self.max_report_rate < 1:
+            raise ValueError("sotdma.max_report_rate must be >= 1")
+        if self.listen_frames < 0:
+            raise ValueError("sotdma.listen_frames must be >= 0")
+
+    @property
+    def symbol_us(self) -> float:
+        return 8.0 * 10.0 / self.channel_mhz
+
+    def air_time_us(self, payload_bytes: int) -> int:
+        """802.11p OFDM frame duration [us] (rounded up) for a CAM of ``payload_bytes`` plus headers."""
+        ndbps = round(self.bit_rate_mbps * self.symbol_us)
+        nbits = 16 + 8 * (payload_bytes + self.mac_overhead_bytes) + 6
+        nsym = -(-nbits // ndbps)
+        preamble_us = 32.0 * 10.0 / self.channel_mhz
+        return math.ceil(preamble_us + self.symbol_us + nsym * self.symbol_us - 1e-9)
+
+    def air_times_us(self, payload_bytes: np.ndarray) -> np.ndarray:
+        """Vectorised ``air_time_us`` (without rounding to whole us) for an array of CAM sizes [B]."""
+        ndbps = round(self.bit_rate_mbps * self.symbol_us)
+        nbits = 22 + 8 * (np.asarray(payload_bytes, dtype=np.int64) + self.mac_overhead_bytes)
+        nsym = -(-nbits // ndbps)
+        return 32.0 * 10.0 / self.channel_mhz + self.symbol_us * (1 + nsym)
+
+    def frame_layout(self, max_cam_bytes: int) -> tuple[int, int, int]:
+        """(frame_us, slot_us, n_slots) for CAMs of at most ``max_cam_bytes``."""
+        frame_us = round(self.frame_s * 1e6)
+        slot_us = self.air_time_us(max_cam_bytes) + self.guard_us
+        n = frame_us // slot_us if self.n_slots is None else self.n_slots
+        if n < 1 or n * slot_us > frame_us:
+            raise ValueError(
+                f"sotdma: {n} slots of {slot_us} us do not fit a {frame_us} us frame; lower n_slots or "
+                "the CAM size (path_history_max_points)"
+            )
+        return frame_us, slot_us, int(n)
+
+
+def report_rate(t_gen_cam_ms: np.ndarray, frame_ms: int, max_rate: int) -> np.ndarray:
+    """Slots per frame that carry a CAM every T_GenCam: clamp(ceil(frame / T_GenCam), 1, max_rate)."""
+    t = np.maximum(np.asarray(t_gen_cam_ms, dtype=np.int64), 1)
+    return np.clip(-(-frame_ms // t), 1, max_rate).astype(np.int16)
+
+
+def select_slots(
+    map_until: np.ndarray,
+    map_dist: np.ndarray,
+    stations: np.ndarray,
+    lo_g: np.ndarray,
+    hi_g: np.ndarray,
+    own: np.ndarray,
+    n_slots: int,
+    min_candidates: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pick one slot per request i in the global slot range [lo_g[i], hi_g[i]] (shorter than a frame),
+    seen from the slot map of station ``stations[i]``.
+
+    map_until: (S, N) int, frame through which each slot is reserved by another station (-1 none);
+    map_dist: (S, N) float, distance to that station [m]; own: (B, R) slot numbers the requesting station
+    already holds (-1 = none), never candidates. Returns (global slot index (B,), candidate-set size (B,)).
+    """
+    b = len(stations)
+    lo_g = np.asarray(lo_g, dtype=np.int64)
+    width = np.asarray(hi_g, dtype=np.int64) - lo_g + 1
+    offs = np.arange(int(width.max()))
+    gs = lo_g[:, None] + offs[None, :]  # (B, W)
+    ks = gs % n_slots
+    inside = offs[None, :] < width[:, None]
+    mine = np.zeros(gs.shape, dtype=bool)
+    rows = np.arange(b)
+    for c in range(own.shape[1]):
+        pos = (own[:, c] - lo_g) % n_slots
+        hit = (own[:, c] >= 0) & (pos < width)
+        mine[rows[hit], pos[hit]] = True
+    st = np.asarray(stations)[:, None]
+    free = inside & ~mine & (map_until[st, ks] < gs // n_slots)
+    n_free = free.sum(axis=1)
+    u = rng.random(b)
+    cum = np.cumsum(free, axis=1)
+    j = (u * n_free).astype(np.int64)
+    pos = np.argmax(cum > j[:, None], axis=1)  # the (j+1)-th free slot
+    n_cand = n_free.copy()
+    few = np.flatnonzero(n_free < min_candidates)
+    if few.size:
+        # fill the candidate set with the slots of the farthest stations; none free: the farthest one
+        taken = inside[few] & ~mine[few] & ~free[few]
+        dist = np.where(taken, map_dist[st[few], ks[few]], -np.inf)
+        far = np.argsort(-dist, axis=1, kind="stable")
+        nf = n_free[few]
+        total = nf + np.minimum(min_candidates - nf, taken.sum(axis=1))
+        jj = (u[few] * total).astype(np.int64)
+        from_far = far[np.arange(few.size), np.clip(jj - nf, 0, far.shape[1] - 1)]
+        from_free = np.argmax(cum[few] > jj[:, None], axis=1)
+        p = np.where(jj < nf, from_free, from_far)
+        p = np.where(nf == 0, far[:, 0], p)
+        pos[few] = p
+        n_cand[few] = np.where(nf == 0, np.minimum(total, 1), total)
+    return gs[rows, pos], n_cand
+
+
+def select_slot(
+    map_until: np.ndarray,
+    map_dist: np.ndarray,
+    own_slots: np.ndarray,
+    lo_g: int,
+    hi_g: int,
+    n_slots: int,
+    min_candidates: int,
+    rng: np.random.Generator,
+) -> tuple[int, int]:
+    """``select_slots`` for one station's map row (N,) and one interval: (global slot, candidate-set size)."""
+    own = np.asarray(own_slots, dtype=np.int64).reshape(1, -1)
+    if own.shape[1] == 0:
+        own = np.full((1, 1), -1, dtype=np.int64)
+    g, n = select_slots(
+        map_until[None, :],
+        map_dist[None, :],
+        np.array([0]),
+        np.array([lo_g]),
+        np.array([hi_g]),
+        own,
+        n_slots,
+        min_candidates,
+        rng,
+    )
+    return int(g[0]), int(n[0])
+
+
+IDLE, LISTENING, ACTIVE = 0, 1, 2
+
+
+@dataclass
+class Transmissions:
+    """Slot uses with a CAM in one window, sorted by global slot (arrays of shape (n,))."""
+
+    station: np.ndarray  # int32 station slot
+    g: np.ndarray  # int64 global slot index (frame * N + slot)
+    timeout: np.ndarray  # int8 announced remaining timeout [frames]
+    offset: np.ndarray  # int32 announced offset to a newly selected / next slot [slots]; 0 = none
+
+
+class SotdmaMac:
+    """SOTDMA state of every station (World slot), vectorised where it is hot.
+
+    Reservations live in (capacity, max_report_rate) arrays; the slot map of each station is a
+    (capacity, N) array of "reserved through frame" indices plus the distance to the reserving station.
+    """
+
+    def __init__(self, params: SotdmaParams, n_slots: int, capacity: int, rng: np.random.Generator):
+        self.p = params
+        self.n = n_slots
+        self.rng = rng
+        self.r_max = params.max_report_rate
+        self.replans = 0  # rate-change re-plans so far (diagnostics)
+        self.capacity = 0
+        self._alloc(capacity)
+
+    _STATION = {
+        "state": (np.int8, IDLE),
+        "listen_end_g": (np.int64, 0),
+        "rate": (np.int16, 1),
+        "nss": (np.int32, 0),  # nominal start slot number
+        "first_frame_end_g": (np.int64, -1),  # offsets to the next slot are announced before this slot
+    }
+    _RES = {
+        "res_slot": (np.int32, -1),  # reserved slot number
+        "res_nominal": (np.int32, -1),  # its nominal slot number
+        "res_next_g": (np.int64, -1),  # next global slot at which it is used
+        "res_timeout": (np.int16, 0),  # remaining timeout [frames]
+    }
+    _MAP = {
+        "map_until": (np.int32, -1),  # frame through which the slot is reserved by another station
+        "map_dist": (np.float32, 0.0),  # its distance when heard [m]
+    }
+
+    def _alloc(self, capacity: int) -> None:
+        old = self.capacity
+        for name, (dt, fill) in self._STATION.items():
+            arr = np.full(capacity, fill, dtype=dt)
+            if old:
+                arr[:old] = getattr(self, name)
+            setattr(self, name, arr)
+        for group, width in ((self._RES, self.r_max), (self._MAP, self.n)):
+            for name, (dt, fill) in group.items():
+                arr = np.full((capacity, width), fill, dtype=dt)
+                if old:
+                    arr[:old] = getattr(self, name)
+                setattr(self, name, arr)
+        self.capacity = capacity
+
+    def ensure_capacity(self, capacity: int) -> None:
+        if capacity > self.capacity:
+            self._alloc(capacity)
+
+    # -- lifecycle -------------------------------------------------------------------------------------------
+    def start(self, slots: np.ndarray, g_now: int) -> None:
+        """New stations: empty map, no reservations, listen for listen_frames frames."""
+        self.stop(slots)
+        self.state[slots] = LISTENING
+        self.listen_end_g[slots] = g_now + self.p.listen_frames * self.n
+        self.map_until[slots] = -1
+        self.map_dist[slots] = 0.0
+
+    def stop(self, slots: np.ndarray) -> None:
+        self.state[slots] = IDLE
+        self.res_slot[slots] = -1
+        self.res_nominal[slots] = -1
+        self.res_next_g[slots] = -1
+        self.res_timeout[slots] = 0
+        self.first_frame_end_g[slots] = -1
+
+    # -- slot selection --------------------------------------------------------------------------------------
+    def _delta(self, rate):
+        """Selection-interval half-width for a report rate (scalar or array) [slots]."""
+        return (self.p.selection_interval_frac * (self.n // np.asarray(rate))).astype(np.int64)
+
+    def _assign(self, s, j, nominal, centre, delta, after) -> np.ndarray:
+        """Select and store reservation j of station s for a batch of requests (arrays of shape (B,)):
+        a slot in [centre - delta, centre + delta], not before ``after``; returns the chosen global slots."""
+        s, j = np.asarray(s, dtype=np.int64), np.asarray(j, dtype=np.int64)
+        lo = np.maximum(np.asarray(centre) - delta, after)
+        hi = np.maximum(np.asarray(centre) + delta, lo)
+        own = self.res_slot[s].astype(np.int64)
+        own[np.arange(s.size), j] = -1  # the slot being replaced may be chosen again
+        g, _ = select_slots(
+            self.map_until, self.map_dist, s, lo, hi, own, self.n, self.p.min_candidates, self.rng
+        )
+        self.res_slot[s, j] = g % self.n
+        self.res_nominal[s, j] = nominal
+        self.res_next_g[s, j] = g
+        self.res_timeout[s, j] = self.rng.integers(
+            self.p.timeout_min_frames, self.p.timeout_max_frames + 1, size=s.size
+        )
+        # requests of one station in one batch whose intervals overlap may have met: redo one by one
+        rows = np.unique(s)
+        r = np.sort(self.res_slot[rows], axis=1)
+        dup = rows[np.any((r[:, 1:] == r[:, :-1]) & (r[:, 1:] >= 0), axis=1)]
+        for st in dup.tolist():
+            for i in np.flatnonzero(s == st).tolist():
+                row = self.res_slot[st].astype(np.int64)
+                if np.count_nonzero(row == row[j[i]]) > 1:
+                    own_i = row.copy()
+                    own_i[j[i]] = -1
+                    gi, _ = select_slots(
+                        self.map_until,
+                        self.map_dist,
+                        np.array([st]),
+                        lo[i : i + 1],
+                        hi[i : i + 1],
+                        own_i[None, :],
+                        self.n,
+                        self.p.min_candidates,
+                        self.rng,
+                    )
+                    g[i] = gi[0]
+                    self.res_slot[st, j[i]] = gi[0] % self.n
+                    self.res_next_g[st, j[i]] = gi[0]
+        return g
+
+    def _next_centre(self, nominal, delta, g_now: int):
+        """Global index of the next occurrence of a nominal slot whose SI still lies (partly) ahead."""
+        return (g_now - delta) + ((np.asarray(nominal) - (g_now - delta)) % self.n)
+
+    def _enter(self, stations: np.ndarray, g_now: int) -> None:
+        """Network entry + first frame: one slot in the SI of each nominal slot NSS + j NI."""
+        n = self.n
+        rate = self.rate[stations].astype(np.int64)
+        ni = n // rate
+        self.nss[stations] = (g_now + self.rng.integers(0, ni)) % n
+        s = np.repeat(stations, rate)
+        j = np.arange(s.size) - np.repeat(np.cumsum(rate) - rate, rate)
+        nominal = (self.nss[s] + j * np.repeat(ni, rate)) % n
+        delta = np.repeat(self._delta(rate), rate)
+        self._assign(s, j, nominal, self._next_centre(nominal, delta, g_now), delta, g_now)
+        self.state[stations] = ACTIVE
+        self.first_frame_end_g[stations] = g_now + n
+
+    def _change_rate(self, stations: np.ndarray, g_now: int) -> None:
+        """Adapt stations to their new ``rate``, keeping what they can.
+
+        More slots: each new nominal slot goes to the middle of the largest gap between the current nominal
+        slots, and a slot is selected in its SI. Fewer: keep an evenly spread subset of the reservations.
+        """
+        n = self.n
+        arrays = (self.res_slot, self.res_nominal, self.res_next_g, self.res_timeout)
+        rows = [a[stations].tolist() for a in arrays]  # plain lists: a few small rows, no numpy overhead
+        rates = self.rate[stations].tolist()
+        nss = self.nss[stations].tolist()
+        req_s, req_j, req_nom = [], [], []
+        shrunk = []
+        for i, s in enumerate(stations.tolist()):
+            slot, nom = rows[0][i], rows[1][i]
+            cols = sorted((c for c in range(self.r_max) if slot[c] >= 0), key=lambda c: nom[c])
+            new = rates[i]
+            if new < len(cols):
+                keep = [cols[round(k * len(cols) / new)] for k in range(new)]
+                for r, fill in zip(rows, (-1, -1, -1, 0), strict=True):
+                    vals = [r[i][c] for c in keep]
+                    r[i] = vals + [fill] * (self.r_max - new)
+                shrunk.append(i)
+                continue
+            noms = sorted(nom[c] for c in cols)
+            free_cols = [c for c in range(self.r_max) if slot[c] < 0][: new - len(cols)]
+            for c in free_cols:
+                if noms:
+                    gaps = [((noms[(k + 1) % len(noms)] - noms[k]) % n) or n for k in range(len(noms))]
+                    k = max(range(len(gaps)), key=gaps.__getitem__)
+                    nominal = (noms[k] + gaps[k] // 2) % n
+                else:
+                    nominal = nss[i]
+                noms = sorted([*noms, nominal])
+                req_s.append(s)
+                req_j.append(c)
+                req_nom.append(nominal)
+        if shrunk:
+            idx = np.array(shrunk)
+            for a, r in zip(arrays, rows, strict=True):
+                a[stations[idx]] = np.array([r[i] for i in shrunk], dtype=a.dtype)
+        grown = stations[np.isin(stations, np.array(req_s, dtype=np.int64))]
+        self.first_frame_end_g[grown] = g_now + n
+        if req_s:
+            s = np.array(req_s)
+            delta = self._delta(self.rate[s].astype(np.int64))
+            nominal = np.array(req_nom)
+            self._assign(s, np.array(req_j), nominal, self._next_centre(nominal, delta, g_now), delta, g_now)
+
+    def set_rates(self, slots: np.ndarray, rates: np.ndarray, g_now: int) -> None:
+        """Report-rate update after CAM generation.
+
+        Active stations adapt when the rate must rise, or when it fell to half or less (hysteresis: a CAM
+        interval jittering between 0.4 and 0.5 s would otherwise change it every few CAMs); stations that
+        are still listening just take the new rate.
+        """
+        rates = np.clip(rates, 1, self.r_max).astype(np.int16)
+        cur = self.rate[slots]
+        active = self.state[slots] == ACTIVE
+        change = ~active | (rates > cur) | (rates <= cur // 2)
+        slots, rates = slots[change], rates[change]
+        replan = slots[self.state[slots] == ACTIVE]
+        self.rate[slots] = rates
+        self.replans += int(replan.size)
+        if replan.size:
+            self._change_rate(replan, g_now)
+
+    def enter(self, g_now: int) -> np.ndarray:
+        """Network entry for every listening station whose initialization phase is over; returns them."""
+        ready = np.flatnonzero((self.state == LISTENING) & (self.listen_end_g <= g_now))
+        if ready.size:
+            self._enter(ready, g_now)
+        return ready
+
+    def force_reservation(self, station: int, j: int, slot: int, next_g: int, timeout: int) -> None:
+        """Overwrite reservation j of a station (scripted scenarios and tests: a forced hidden terminal)."""
+        self.res_slot[station, j] = slot
+        self.res_next_g[station, j] = next_g
+        self.res_timeout[station, j] = timeout
+        if self.res_nominal[station, j] < 0:
+            self.res_nominal[station, j] = slot
+
+    # -- one window ------------------------------------------------------------------------------------------
+    def transmissions(self, g_lo: int, g_hi: int, pending: np.ndarray) -> Transmissions:
+        """Use every reserved slot in [g_lo, g_hi): stations with a pending CAM send it in their first one.
+
+        ``pending`` (capacity,) bool is cleared for the stations that sent. Timeouts count down on every use
+        (sent or silent); at 0 a new slot is chosen in the same SI of the next frame and announced.
+        """
+        n = self.n
+        use = (self.res_next_g >= g_lo) & (self.res_next_g < g_hi)
+        use &= (self.state == ACTIVE)[:, None]
+        st, j = np.nonzero(use)
+        if st.size == 0:
+            e = np.zeros(0, dtype=np.int64)
+            return Transmissions(e.astype(np.int32), e, e.astype(np.int8), e.astype(np.int32))
+        g = self.res_next_g[st, j]
+        order = np.lexsort((j, st, g))
+        st, j, g = st[order], j[order], g[order]
+        # the first use of each station in the window carries its pending CAM
+        first = np.zeros(st.size, dtype=bool)
+        _, first_idx = np.unique(st, return_index=True)
+        first[first_idx] = True
+        sends = first & pending[st]
+        pending[st[sends]] = False
+        tau = self.res_timeout[st, j].astype(np.int64)
+        offset = np.zeros(st.size, dtype=np.int64)
+        # continuous operation: count down, or reselect at timeout 0
+        cont = tau > 0
+        self.res_timeout[st[cont], j[cont]] = tau[cont] - 1
+        self.res_next_g[st[cont], j[cont]] = g[cont] + n
+        resel = np.flatnonzero(~cont)
+        if resel.size:
+            rs, rj, rg = st[resel], j[resel], g[resel]
+            delta = self._delta(np.maximum(self.rate[rs].astype(np.int64), 1))
+            nominal = self.res_nominal[rs, rj].astype(np.int64)
+            # the nominal occurrence each use belongs to, then the same one a frame later
+            centre = rg + (nominal - rg % n + n // 2) % n - n // 2 + n
+            new_g = self._assign(rs, rj, nominal, centre, delta, rg + 1)
+            offset[resel] = new_g - rg
+        # first frame after entry / re-plan: announce the offset to the station's next slot
+        ff = np.flatnonzero(sends & cont & (g < self.first_frame_end_g[st]))
+        for i in ff.tolist():
+            s, gi = int(st[i]), int(g[i])
+            later = g[(st == s) & (g > gi)]
+            nxt = self.res_next_g[s][self.res_next_g[s] > gi]
+            cands = np.concatenate([later, nxt])
+            if cands.size:
+                offset[i] = int(cands.min()) - gi
+        keep = sends
+        return Transmissions(
+            st[keep].astype(np.int32), g[keep], tau[keep].astype(np.int8), offset[keep].astype(np.int32)
+        )
+
+    def hear(
+        self,
+        rx: np.ndarray,
+        tx_station: np.ndarray,
+        g: np.ndarray,
+        timeout: np.ndarray,
+        offset: np.ndarray,
+        dist_m: np.ndarray,
+    ) -> None:
+        """Update receivers' slot maps from decoded messages (arrays of shape (m,))."""
+        if rx.size == 0:
+            return
+        n = self.n
+        g = g.astype(np.int64)
+        until = (g // n + timeout.astype(np.int64)).astype(np.int32)
+        # a receiver decodes at most one message per slot, so these cells are unique
+        cell = rx.astype(np.int64) * n + g % n
+        mu, md = self.map_until.reshape(-1), self.map_dist.reshape(-1)
+        mu[cell] = np.maximum(mu[cell], until)
+        md[cell] = dist_m
+        ann = offset != 0
+        if ann.any():
+            gt = g[ann] + offset[ann].astype(np.int64)
+            cell = rx[ann].astype(np.int64) * n + gt % n
+            np.maximum.at(mu, cell, (gt // n).astype(np.int32))
+            md[cell] = dist_m[ann]
