@@ -20,7 +20,6 @@ from cosim.config import to_dict
 from cosim.log import McapLog
 from cosim.runconfig import RunConfig
 from cosim.scenario import Scenario, build_scenario
-from cosim.scenario.demand import drivable_component, is_spawn_edge
 from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoBridge, SumoEvent
 from cosim.sumo_bridge.tools import sumo_version
 from cosim.world import World
@@ -78,6 +77,9 @@ class Simulation:
         self._net = None
         self.ego_route: list[str] = []
         self.ego = None  # the EgoController when MuJoCo drives the ego
+        self.vanet = None  # the VanetPhase when the radio is on
+        self.adas = None  # the AdasPhase when there is an ego
+        self.lead = None  # the LeadVehicle of the following task
         self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
         self.closed = False
         try:
@@ -85,12 +87,23 @@ class Simulation:
             if self.out_dir is not None:
                 self.mcap = McapLog(self.out_dir / "run.mcap", flush_every_s=config.log.flush_every_s)
                 self._write_metadata()
+            if config.vanet is not None:
+                from cosim.phases.vanet import VanetPhase
+
+                self.vanet = VanetPhase(self, config.vanet)
             if config.ego.enabled:
                 self._setup_ego()
                 if config.ego.physics == "mujoco":
-                    from cosim.ego_loop import EgoController
+                    from cosim.phases.ego import EgoController
 
                     self.ego = EgoController(self)
+                from cosim.phases.adas import AdasPhase
+                from cosim.phases.lead import LeadVehicle
+
+                if config.ego.lead_vehicle:
+                    self.lead = LeadVehicle(self, config.ego.lead_waits_beyond_m)
+
+                self.adas = AdasPhase(self, config.adas)
             from cosim.log.recorder import attach_recorder
 
             if self.mcap is not None:
@@ -119,32 +132,13 @@ class Simulation:
 
     def _setup_ego(self) -> None:
         ego = self.config.ego
-        route = list(ego.route) or self.choose_route(ego.route_length_m)
+        route = list(ego.route) or list(self.scenario.report["demand"]["ego_route"])
         self.ego_route = route
         if ego.lead_vehicle:
             self.bridge.add_vehicle(LEAD_ID, route, depart=ego.depart_s, type_id="scv", color=(40, 120, 255, 255))
         self.bridge.add_ego(route, depart=ego.depart_s + (3.0 if ego.lead_vehicle else 0.0),
-                            controlled=ego.physics == "mujoco")  # fmt: skip
-
-    def choose_route(self, min_length_m: float) -> list[str]:
-        """A long A* route from the seed: random legs chained until ``min_length_m`` (deterministic)."""
-        rng = np.random.default_rng([self.config.seed, 7])
-        comp = drivable_component(self.net)
-        comp_ids = [e.getID() for e in comp]
-        starts = [e for e in comp if is_spawn_edge(e) and e.getLength() > 40 and e.getSpeed() >= 8.0] or comp
-        length = {e.getID(): e.getLength() for e in comp}
-        route = [starts[rng.integers(len(starts))].getID()]
-        total = length[route[0]]
-        for _ in range(200):
-            if total >= min_length_m:
-                break
-            dest = comp_ids[rng.integers(len(comp_ids))]
-            leg = self.bridge.find_route(route[-1], dest)
-            if len(leg) < 2 or (len(route) > 1 and leg[1] == route[-2]):  # avoid an immediate U-turn
-                continue
-            route.extend(leg[1:])
-            total += sum(length.get(e, 0.0) for e in leg[1:])
-        return route
+                            controlled=ego.physics == "mujoco", length_m=ego.car.length_m,
+                            width_m=ego.car.width_m)  # fmt: skip
 
     # -- the loop --------------------------------------------------------------------------------------------
     def add_hook(self, phase: str, fn: Callable[[Simulation], None]) -> None:

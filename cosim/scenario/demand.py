@@ -1,15 +1,21 @@
 """Traffic demand (paper V.A): SCVs start only on primary, secondary, tertiary, unclassified, motorway and
 residential edges and drive to a random reachable destination along an A* route.
 
-Density presets are network-wide averages of vehicles present per lane-km (``DENSITY_PRESETS``). The run
-starts with that many vehicles already spread over the network (random positions on their origin edges)
-and keeps it by Poisson arrivals at rate N / mean trip time until ``horizon_s``.
+Density presets are averages of vehicles present per lane-km (``DENSITY_PRESETS``). The run starts with
+that many vehicles already spread over the area (random positions on their origin edges) and keeps it by
+Poisson arrivals at rate N / mean trip time until ``horizon_s``.
+
+The scenario also fixes the ego's predefined route (the paper's "predefined path"): random A* legs chained
+from a seeded start until ``ego_route_length_m``. With ``area: ego_route`` the traffic starts and ends
+only within ``corridor_m`` of that route, which gives a study the density where the participant drives
+without paying for a whole town of cars.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -30,6 +36,9 @@ class DemandParams:
     density: str = "medium"  # a preset name, see DENSITY_PRESETS
     vehicles_per_lane_km: float | None = None  # overrides the preset when given
     horizon_s: float = 3600.0  # vehicles keep arriving until this time [s]
+    area: Literal["network", "ego_route"] = "network"  # where SCVs start and end
+    corridor_m: float = 300.0  # with area: ego_route, the half-width of the corridor [m]
+    ego_route_length_m: float = 15000.0  # minimum length of the ego's predefined route [m]
 
     def __post_init__(self):
         if self.density not in DENSITY_PRESETS:
@@ -38,6 +47,8 @@ class DemandParams:
             raise ValueError("vehicles_per_lane_km must be in (0, 150] (150 is jam density)")
         if self.horizon_s <= 0:
             raise ValueError("horizon_s must be > 0")
+        if self.corridor_m <= 0 or self.ego_route_length_m <= 0:
+            raise ValueError("corridor_m and ego_route_length_m must be > 0")
 
     @property
     def per_lane_km(self) -> float:
@@ -71,6 +82,41 @@ def is_spawn_edge(edge) -> bool:
     return any(etype == f"highway.{h}" or etype.startswith(f"highway.{h}|") for h in SPAWN_HIGHWAYS)
 
 
+def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: float, table: RouteTable,
+                     net_file: Path, workdir: Path) -> list[str]:  # fmt: skip
+    """The ego's predefined route: A* legs to random destinations chained from a seeded start edge."""
+    starts = [e for e in comp if is_spawn_edge(e) and e.getLength() > 40 and e.getSpeed() >= 8.0] or comp
+    comp_ids = [e.getID() for e in comp]
+    length = {e.getID(): e.getLength() for e in comp}
+    route = [starts[int(rng.integers(len(starts)))].getID()]
+    total = length[route[0]]
+    for _ in range(12):  # batches of candidate legs, routed together
+        if total >= min_length_m:
+            break
+        dests = [comp_ids[int(i)] for i in rng.integers(0, len(comp_ids), 8)]
+        legs = table.routes([(route[-1], d) for d in dests], net_file, workdir)
+        for d in dests:
+            leg = legs.get((route[-1], d))
+            if not leg or len(leg) < 3 or (len(route) > 1 and leg[1] == route[-2]):  # no U-turn
+                continue
+            route.extend(leg[1:])
+            total += sum(length.get(e, 0.0) for e in leg[1:])
+            break
+    return route
+
+
+def corridor_edges(comp: list, route: list[str], corridor_m: float) -> list:
+    """Edges of ``comp`` within ``corridor_m`` of the route's geometry."""
+    import shapely
+
+    by_id = {e.getID(): e for e in comp}
+    line = shapely.MultiLineString([[p[:2] for p in by_id[r].getShape()] for r in route if r in by_id])
+    area = shapely.buffer(line, corridor_m)
+    lines = shapely.linestrings([[p[:2] for p in e.getShape()] for e in comp])
+    near = shapely.intersects(area, lines)
+    return [e for e, ok in zip(comp, near, strict=True) if ok]
+
+
 @dataclass
 class Demand:
     vehicles: int
@@ -82,11 +128,18 @@ class Demand:
     dropped_unroutable: int
     routes_from_table: int
     routes_computed: int
+    ego_route: list[str]
+    ego_route_length_m: float
+    area_lane_km: float
 
 
 def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehaviour, rng: np.random.Generator,
                  table: RouteTable, out: Path, workdir: Path) -> Demand:  # fmt: skip
     comp = drivable_component(net)
+    ego_route = choose_ego_route(net, comp, np.random.default_rng([int(rng.integers(2**31)), 1]),
+                                 params.ego_route_length_m, table, net_file, workdir)  # fmt: skip
+    if params.area == "ego_route":
+        comp = corridor_edges(comp, ego_route, params.corridor_m)
     origins = [e for e in comp if is_spawn_edge(e) and e.getLength() > 5.0]
     if not origins:
         raise CosimError("the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on")
@@ -126,7 +179,8 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     routes.update(table.routes(flow, net_file, workdir))
     dropped = sum(1 for p in flow if not routes.get(p))
 
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>", behaviour.vtype_distribution_xml(rng)]
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>", behaviour.vtype_distribution_xml(rng),
+             f'    <route id="ego_route" edges="{" ".join(ego_route)}"/>']  # fmt: skip
     n = 0
     for o, d in initial:  # already spread over the network at t = 0
         lines.append(
@@ -144,5 +198,6 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
         n += 1
     lines.append("</routes>")
     out.write_text("\n".join(lines) + "\n")
+    ego_len = sum(e.getLength() for e in (net.getEdge(r) for r in ego_route))
     return Demand(n, len(initial), lane_km, params.per_lane_km, rate * 3600.0, mean_trip, dropped,
-                  table.hits, table.computed)  # fmt: skip
+                  table.hits, table.computed, ego_route, round(ego_len, 1), round(lane_km, 2))  # fmt: skip

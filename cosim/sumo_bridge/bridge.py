@@ -47,6 +47,7 @@ class SumoBridge:
         cmd = [binary("sumo-gui" if gui else "sumo"), "-c", str(sumocfg), "--seed", str(seed),
                "--step-length", f"{step_s:g}", "--no-warnings", "true", "--no-step-log", "true",
                "--collision.check-junctions", "true", "--collision.action", "warn",
+               "--collision.mingap-factor", "0",  # a collision is a real overlap, not a gap below minGap
                "--additional-files", str(sumocfg.parent / "signs.add.xml"),  # buildings are cosim's, not SUMO's
                *extra_args]  # fmt: skip
         if gui:
@@ -143,10 +144,16 @@ class SumoBridge:
         if color is not None:
             self.sumo.vehicle.setColor(vid, color)
 
-    def add_ego(self, route: list[str], *, depart: float | str = "now", controlled: bool) -> None:
-        """Insert the ego. When MuJoCo drives it (``controlled``), SUMO must not move it by itself."""
+    def add_ego(self, route: list[str], *, depart: float | str = "now", controlled: bool, length_m: float,
+                width_m: float) -> None:  # fmt: skip
+        """Insert the ego with the car's dimensions. When MuJoCo drives it (``controlled``), SUMO must not
+        move it by itself."""
         self.ego_id = EGO_ID
-        self.add_vehicle(EGO_ID, route, depart=depart, color=(255, 40, 40, 255))
+        vtype = self.sumo.vehicletype
+        vtype.copy("DEFAULT_VEHTYPE", "ego_car")
+        vtype.setLength("ego_car", length_m)
+        vtype.setWidth("ego_car", width_m)
+        self.add_vehicle(EGO_ID, route, depart=depart, type_id="ego_car", color=(255, 40, 40, 255))
         if controlled:
             veh = self.sumo.vehicle
             veh.setSpeedMode(EGO_ID, 0)  # no SUMO safety checks: the physics decides
@@ -176,6 +183,13 @@ class SumoBridge:
 
     def vehicle_ids(self) -> list[str]:
         return list(self.sumo.vehicle.getIDList())
+
+    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float]]:
+        """(foe id, its distance to the conflict [m]) for the vehicles ``vid`` must yield to at the junctions
+        within ``lookahead_m`` on its route (SUMO's own right-of-way model)."""
+        foes = self.sumo.vehicle.getJunctionFoes(vid, lookahead_m)
+        # tuples: (foeId, egoDist, foeDist, egoExitDist, foeExitDist, egoLane, foeLane, egoResponse, foeResponse)
+        return [(f[0], f[2]) for f in foes if f[7]]
 
     def next_tls(self, vid: str) -> tuple[str, int, float, str] | None:
         """(tls id, link index, distance to the stop line [m], state char) of the next light, if any."""

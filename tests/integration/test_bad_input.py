@@ -72,7 +72,7 @@ def test_unknown_density(tmp_path):
     ("yaml_text", "words"),
     [
         ("seed: 1\nfoo: 2\n", "config foo: unknown key"),
-        ("ego:\n  route_length_m: abc\n", "config ego.route_length_m: expected a number"),
+        ("ego:\n  depart_s: abc\n", "config ego.depart_s: expected a number"),
         ("timing:\n  physics_timestep_s: 0.003\n", "config timing: sumo_step_s (0.1) must be an integer multiple"),
         ("timing:\n  cam_check_period_s: 0.15\n", "config timing: cam_check_period_s"),
         ("scenario:\n  demand:\n    density: extreme\n", "unknown density 'extreme'"),

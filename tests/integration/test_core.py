@@ -95,7 +95,7 @@ def test_ego_write_back_makes_a_sumo_follower_brake(tmp_path):
     bridge = SumoBridge(scn.sumocfg, seed=1, step_s=0.1, extra_args=("--route-files", ""))
     try:
         world = World(16)
-        bridge.add_ego([edge.getID()], depart=0, controlled=True)
+        bridge.add_ego([edge.getID()], depart=0, controlled=True, length_m=4.4, width_m=1.8)
         bridge.add_vehicle("follower", [edge.getID()], depart=0, type_id="DEFAULT_VEHTYPE", depart_speed="10")
         shape = edge.getLane(0).getShape()
         (x0, y0), (x1, y1) = shape[0], shape[-1]

@@ -194,8 +194,9 @@ class EgoController:
                 break
             kind = _SIGN_OF_STATE.get(line.state)
             if kind:
-                kw.update(sign_kind=kind, sign_dist_m=max(0.0, line.s_m - s_front), sign_id=line.junction,
-                          junction_conflict=self._conflict(w, line, slot))  # fmt: skip
+                dist = max(0.0, line.s_m - s_front)
+                kw.update(sign_kind=kind, sign_dist_m=dist, sign_id=line.junction,
+                          junction_conflict=self._conflict(sim, dist))  # fmt: skip
                 break
         adas = sim.outputs.get("adas_displays", {})
         self.percept = Percept(
@@ -206,17 +207,12 @@ class EgoController:
         )  # fmt: skip
         self.controls = self.driver.act(self.percept, sim.step_s)
 
-    def _conflict(self, w, line: StopLine, ego_slot: int) -> bool:
-        """A vehicle other than the ego heads for the junction from within 200 m (paper IV.B)."""
-        jx, jy = line.xy
-        v = w.valid.copy()
-        v[ego_slot] = False
-        dx, dy = jx - w.x_m, jy - w.y_m
-        dist = np.hypot(dx, dy)
-        ux, uy = w.heading_unit()
-        approaching = v & (dist < CONFLICT_RADIUS_M) & (dist > 3.0) & (w.speed_mps > 0.5) & ((dx * ux + dy * uy) > 0.7 * dist)
-        same_edge = w.edge_code == w.edge_code[ego_slot]
-        return bool(np.any(approaching & ~same_edge))
+    @staticmethod
+    def _conflict(sim, sign_dist_m: float) -> bool:
+        """A vehicle the ego must yield to approaches the signed junction from within 200 m (paper IV.B)."""
+        if sign_dist_m > 80.0:  # decided on the approach, not from afar
+            return False
+        return any(d < CONFLICT_RADIUS_M for _, d in sim.bridge.yield_foes(EGO_ID, sign_dist_m + 5.0))
 
     def integrate(self, sim) -> None:
         if not self.started:
@@ -240,4 +236,8 @@ class EgoController:
             "leader_id": p.leader_id if p else None,
             "leader_gap_m": round(p.leader_gap_m, 3) if p and p.leader_present else None,
             "tls_state": p.tls_state if p else None,
+            "sign": p.sign_kind if p else None,
+            "sign_dist_m": round(p.sign_dist_m, 2) if p and p.sign_kind else None,
+            "junction_conflict": bool(p.junction_conflict) if p else False,
+            "driver_mode": getattr(getattr(self.driver, "debug", None), "mode", ""),
         }  # fmt: skip

@@ -1,0 +1,116 @@
+"""The assistance phase: system A (rear-mounted stereo warning on the leader) and system B (V2V time gap).
+
+Which system the driver sees is ``AdasPhase.active`` ('none' | 'A' | 'B'), set by the config or, in an
+experiment, by the protocol's current phase. Both systems are evaluated every step so that the log shows
+what each would have displayed, next to the ground-truth time gap to the vehicle SUMO sees ahead.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from cosim.adas import RearStereoWarning, V2VTimeGapWarning, VehicleState
+from cosim.adas.rear_stereo import RearWarningParams
+from cosim.adas.v2v_timegap import CamData, TimeGapParams, ground_truth_time_gap
+from cosim.scenario.buildings import load_buildings
+from cosim.sumo_bridge.bridge import EGO_ID
+from cosim.vanet.obu import LeaderCriteria
+
+System = Literal["none", "A", "B"]
+
+
+@dataclass(frozen=True)
+class AdasConfig:
+    system: System = "none"  # what the driver sees when no experiment protocol decides
+    rear: RearWarningParams = field(default_factory=RearWarningParams)  # system A
+    v2v: TimeGapParams = field(default_factory=TimeGapParams)  # system B
+    # how system B's OBU picks the vehicle to show the gap to: the paper's criteria a-d and g; e (it
+    # accelerates less) and f (gap below 2 s) decide a warning, not who the leader is
+    leader_criteria: LeaderCriteria = field(
+        default_factory=lambda: LeaderCriteria(accel_smaller=False, time_gap=False)
+    )
+    leader_search_m: float = 150.0  # ground-truth leader search distance [m]
+
+
+class AdasPhase:
+    def __init__(self, sim, config: AdasConfig):
+        self.sim = sim
+        self.config = config
+        self.active: System = config.system
+        self.phase_name = ""
+        buildings, _ = load_buildings(sim.scenario.buildings_file)
+        self.system_a = RearStereoWarning(config.rear, buildings, rng=np.random.default_rng([sim.config.seed, 31]))
+        self.system_b = V2VTimeGapWarning(config.v2v)
+        self._b_station: int | None = None
+        sim.add_hook("adas", self.step)
+
+    def _state(self, slot: int) -> VehicleState:
+        return VehicleState.from_world(self.sim.world, slot)
+
+    def step(self, sim) -> None:
+        w = sim.world
+        ego = w.slot_of.get(EGO_ID)
+        if ego is None:
+            return
+        me = self._state(ego)
+        lead = sim.bridge.leader(EGO_ID, self.config.leader_search_m)
+        leader_slot = w.slot_of.get(lead[0]) if lead else None
+        true_gap_s = math.nan
+        a_out = None
+        if leader_slot is not None:
+            leader = self._state(leader_slot)
+            true_gap_s = ground_truth_time_gap(me, leader, self.config.v2v)
+            a_out = self.system_a.update(w.t_s, leader, me)
+        b_out = self.system_b.update(w.t_s, me, self._cam_of_leader(sim))
+        a_lit = bool(a_out and a_out.display_lit)
+        a_seen = bool(a_out and a_out.perceived)
+        displays = {}
+        if self.active == "A":
+            displays = {"sys_a_lit": a_seen}
+        elif self.active == "B":
+            displays = {"sys_b_gap_s": b_out.time_gap_s, "sys_b_level": b_out.level}
+        sim.outputs["adas_displays"] = displays
+        warning = {"A": "warning" if a_seen else "none", "B": b_out.level}.get(self.active, "none")
+        shown = b_out.time_gap_s if self.active == "B" else None
+        record = {
+            "t_s": w.t_s, "phase": self.phase_name, "system": self.active,
+            "time_gap_true_s": _r(true_gap_s), "time_gap_displayed_s": _r(shown), "warning": warning,
+            "leader_id": lead[0] if lead else "", "a_lit": a_lit, "a_perceived": a_seen,
+            "a_measured_m": _r(a_out.measured_distance_m if a_out else None), "a_reason": a_out.reason if a_out else "",
+            "b_gap_s": _r(b_out.time_gap_s), "b_level": b_out.level, "b_status": b_out.status,
+            "b_age_s": _r(b_out.data_age_s), "b_station": self._b_station if self._b_station is not None else -1,
+        }  # fmt: skip
+        sim.outputs["adas"] = record
+        if sim.mcap is not None:
+            log = sim.outputs.setdefault("log", {})
+            log["/adas/state"] = record
+            events = [dataclasses.asdict(e) for e in self.system_a.pop_events() + self.system_b.pop_events()]
+            if events:
+                log["/adas/events"] = {"t_s": w.t_s, "events": events}
+
+    def _cam_of_leader(self, sim) -> CamData | None:
+        """System B sees only CAM data: the OBU picks the leader by criteria a-d, g, then its newest CAM."""
+        vanet = getattr(sim, "vanet", None)
+        obu = vanet.ego_obu() if vanet else None
+        if obu is None:
+            return None
+        found = obu.find_leader(self.config.leader_criteria)
+        if found is not None:
+            self._b_station = int(found.station_id)
+        if self._b_station is None:
+            return None
+        cam, _age = obu.latest_from(self._b_station, max_age_s=math.inf)
+        if cam is None:
+            return None
+        return CamData(generation_t_s=cam.generation_t_s, x_m=cam.x_m, y_m=cam.y_m, heading_deg=cam.heading_deg,
+                       speed_mps=cam.speed_mps, length_m=cam.length_m, accel_mps2=cam.accel_mps2,
+                       station_id=int(cam.station_id))  # fmt: skip
+
+
+def _r(v, nd: int = 4):
+    return None if v is None or not math.isfinite(v) else round(float(v), nd)

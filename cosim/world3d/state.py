@@ -1,0 +1,118 @@
+"""What one rendered frame shows (pure data), and the vehicle pool's assignment rule.
+
+Live driving (drive.py) and replay (replay.py) both fill a :class:`FrameState`; :class:`Scene.apply`
+(scene.py) poses the MuJoCo scene from it. All positions here are NETWORK coordinates of vehicle CENTRES
+(not front bumpers) and yaw in radians counter-clockwise from +x (the MuJoCo convention, ``cosim.frames``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cosim.world3d.hud import HudState
+
+
+@dataclass(frozen=True)
+class EgoPose:
+    """The ego car's pose: footprint centre in network coordinates [m], yaw [rad] ccw from +x."""
+
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    z_m: float = 0.0  # [m] body lift above its resting height (bounce, from the physics car)
+    pitch_rad: float = 0.0  # [rad] nose down positive
+    roll_rad: float = 0.0  # [rad] right side down positive
+    braking: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("x_m", "y_m", "yaw_rad", "z_m", "pitch_rad", "roll_rad"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"EgoPose.{name} must be finite, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class VehicleFrame:
+    """Simulation-controlled vehicles at one instant (struct of arrays, N vehicles)."""
+
+    ids: tuple[str, ...]  # (N,) SUMO vehicle ids
+    x_m: np.ndarray  # (N,) float64 [m] footprint centre, network x
+    y_m: np.ndarray  # (N,) float64 [m] footprint centre, network y
+    yaw_rad: np.ndarray  # (N,) float64 [rad] ccw from +x
+    braking: np.ndarray  # (N,) bool, brake lights on
+
+    def __post_init__(self) -> None:
+        n = len(self.ids)
+        object.__setattr__(self, "ids", tuple(self.ids))
+        for name, dtype in (("x_m", np.float64), ("y_m", np.float64), ("yaw_rad", np.float64), ("braking", bool)):
+            arr = np.asarray(getattr(self, name), dtype=dtype).reshape(-1)
+            if len(arr) != n:
+                raise ValueError(f"VehicleFrame.{name} has {len(arr)} entries for {n} ids")
+            object.__setattr__(self, name, arr)
+
+    @classmethod
+    def empty(cls) -> VehicleFrame:
+        z = np.zeros(0)
+        return cls((), z, z, z, np.zeros(0, dtype=bool))
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+
+@dataclass(frozen=True, eq=False)
+class FrameState:
+    """Everything the scene shows at one instant."""
+
+    t_s: float  # [s] simulated time
+    ego: EgoPose | None  # None: no ego (cameras then look at the scene origin)
+    vehicles: VehicleFrame = field(default_factory=VehicleFrame.empty)
+    lights: dict[str, str] = field(default_factory=dict)  # traffic-light id -> SUMO state string ('GrYy...')
+    leader_id: str | None = None  # the vehicle whose rear display (system A) is shown
+    rear_display_lit: bool = False  # system A's 'keep distance' display on that vehicle is on
+    hud: HudState | None = None
+
+
+class VehiclePool:
+    """Assigns vehicles to a fixed number of car bodies: the ``size`` nearest, keeping a vehicle on the same
+    body as long as it stays selected (so colours do not jump between cars)."""
+
+    def __init__(self, size: int) -> None:
+        if size < 0:
+            raise ValueError(f"VehiclePool size must be >= 0, got {size}")
+        self.size = size
+        self.slot_of: dict[str, int] = {}
+        self._free = list(range(size - 1, -1, -1))  # pop() gives the lowest
+
+    def assign(self, ids: tuple[str, ...] | list[str], dist_m: np.ndarray, max_dist_m: float = math.inf) -> np.ndarray:
+        """Pool slot per vehicle ((N,) int, -1 = not shown) for this frame.
+
+        dist_m: (N,) float64 [m] distance to the viewer; vehicles farther than max_dist_m are never shown.
+        Ties are broken by id, so the result does not depend on the input order.
+        """
+        n = len(ids)
+        dist = np.asarray(dist_m, dtype=np.float64).reshape(-1)
+        if len(dist) != n:
+            raise ValueError(f"assign: {len(dist)} distances for {n} ids")
+        cand = np.flatnonzero(dist <= max_dist_m)
+        if len(cand) > self.size:
+            order = sorted(cand.tolist(), key=lambda i: (dist[i], ids[i]))
+            cand = np.asarray(order[: self.size], dtype=np.int64)
+        chosen = {ids[i] for i in cand.tolist()}
+        for vid in [v for v in self.slot_of if v not in chosen]:
+            self._free.append(self.slot_of.pop(vid))
+        self._free.sort(reverse=True)
+        out = np.full(n, -1, dtype=np.int64)
+        new = []
+        for i in cand.tolist():
+            slot = self.slot_of.get(ids[i])
+            if slot is None:
+                new.append(i)
+            else:
+                out[i] = slot
+        for i in sorted(new, key=lambda j: (dist[j], ids[j])):
+            slot = self._free.pop()
+            self.slot_of[ids[i]] = slot
+            out[i] = slot
+        return out
