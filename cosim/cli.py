@@ -68,6 +68,44 @@ def _log_export(args) -> int:
     return 0
 
 
+def _experiment(args) -> int:
+    from cosim.experiment.protocol import load_experiment
+    from cosim.experiment.runner import run_experiment
+
+    exp, base = load_experiment(args.config, map_path=args.map, participants=args.participants,
+                                phase_duration_s=args.phase_duration)  # fmt: skip
+    out = Path(args.out) if args.out else Path("results") / exp.name
+    summary = run_experiment(exp, base, out, jobs=args.jobs, quiet=args.quiet)
+    if not args.quiet:
+        print((out / "summary.md").read_text())
+    print(f"results in {out}/ ({summary['wall_s']:.0f} s wall for {summary['simulated_s']:.0f} simulated s)")
+    return 0
+
+
+def _compare(args) -> int:
+    from cosim.experiment.compare import CompareTolerances, compare_files
+
+    tol = CompareTolerances(rmse_abs_s=args.rmse_tol) if args.rmse_tol is not None else None
+    result = compare_files(args.a, args.b, tol)
+    print(result.table())
+    return 0 if result.ok else 1
+
+
+def _vanet_report(args) -> int:
+    import json
+
+    from cosim.log import read
+    from cosim.vanet.report import vanet_report
+
+    log = read(args.file, topics=["/vanet/tx", "/vanet/rx", "/vanet/load", "/vanet/step"])
+    if "/vanet/tx" not in log.topics:
+        raise CosimError(f"{args.file} has no /vanet/* topics: the run had the radio off (vanet: null)")
+    out = Path(args.out) if args.out else Path(args.file).parent / "vanet"
+    print(json.dumps(vanet_report(log.topics, out), indent=1, default=str))
+    print(f"plots in {out}/")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from cosim.scenario.demand import DENSITY_NAMES
 
@@ -91,6 +129,27 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--gui", action="store_true", help="watch in sumo-gui (TraCI backend)")
     r.add_argument("--quiet", action="store_true", help="no progress bar; print the result as JSON")
     r.set_defaults(fn=_run)
+
+    ex = sub.add_parser("experiment", help="run the A/B/baseline experiment protocol for all participants")
+    ex.add_argument("config", help="experiment config YAML (e.g. configs/experiment.yaml)")
+    ex.add_argument("--map", help="OSM file to run on instead of the config's map")
+    ex.add_argument("--participants", type=int, help="number of participants (profiles repeat)")
+    ex.add_argument("--phase-duration", type=float, help="seconds per phase (default: the config's)")
+    ex.add_argument("--jobs", type=int, help="parallel processes (default: cores)")
+    ex.add_argument("--out", help="output directory (default results/<name>)")
+    ex.add_argument("--quiet", action="store_true")
+    ex.set_defaults(fn=_experiment)
+
+    cp = sub.add_parser("compare", help="compare two runs' time-gap traces (exit 1 when outside tolerance)")
+    cp.add_argument("a", help="reference run: timegap.csv or run.mcap")
+    cp.add_argument("b", help="run to check: timegap.csv or run.mcap")
+    cp.add_argument("--rmse-tol", type=float, help="RMSE tolerance of the time gap [s] (default 0.02)")
+    cp.set_defaults(fn=_compare)
+
+    vr = sub.add_parser("vanet-report", help="V2V metrics of a run: PDR vs distance, channel load, AoI")
+    vr.add_argument("file", help="run.mcap")
+    vr.add_argument("--out", help="directory for the plots (default: beside the log, vanet/)")
+    vr.set_defaults(fn=_vanet_report)
 
     lg = sub.add_parser("log", help="inspect a run's MCAP log")
     lsub = lg.add_subparsers(dest="log_command", required=True)

@@ -62,6 +62,7 @@ class EgoConfig:
     lead_waits_beyond_m: float = 60.0  # the lead slows down for the ego beyond this gap (0 = never) [m]
     car: CarParams = field(default_factory=CarParams)  # the MuJoCo car (mass, tyres, power, brakes ...)
     driver: DriverConfig = field(default_factory=DriverConfig)  # who drives: scripted profile, keyboard, wheel
+    driver_seed: int = 0  # the driver's own randomness (perception noise, wander): one per participant
 
     def __post_init__(self):
         if self.depart_s < 0:
@@ -106,7 +107,15 @@ def load_run_config(path: str | Path | None = None, **overrides) -> RunConfig:
     validation, so that command-line options are checked like the file.
     """
     data = read_yaml(path) if path else {}
-    base = Path(path).resolve().parent if path else Path.cwd()
+    return run_config_from(data, Path(path).resolve().parent if path else None, **overrides)
+
+
+def run_config_from(data: dict, base: Path | None, **overrides) -> RunConfig:
+    """Validate a run-config mapping; a relative map path is looked up in ``base``, then its parent (so
+    that configs/*.yaml may name maps as ``maps/x.osm.gz`` or ``configs/maps/x.osm.gz``), then the cwd."""
+    import copy
+
+    data = copy.deepcopy(data)
     for key, value in overrides.items():
         if value is None:
             continue
@@ -120,9 +129,6 @@ def load_run_config(path: str | Path | None = None, **overrides) -> RunConfig:
     config = from_dict(RunConfig, data)
     map_path = Path(config.scenario.map)
     if not map_path.is_absolute():
-        candidate = (base / map_path) if path else map_path
-        if not candidate.exists() and path:  # configs/ files name maps relative to the project root too
-            alt = base.parent / map_path
-            candidate = alt if alt.exists() else candidate
-        map_path = candidate.resolve()
+        candidates = [b / map_path for b in (base, base.parent) if b is not None] if base else []
+        map_path = next((c for c in candidates if c.exists()), candidates[0] if candidates else map_path).resolve()
     return dataclasses.replace(config, scenario=dataclasses.replace(config.scenario, map=str(map_path)))

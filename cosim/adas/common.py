@@ -82,6 +82,20 @@ def along_heading_gap_m(
     return (rear_x_m - ego_x_m) * ux + (rear_y_m - ego_y_m) * uy
 
 
+def chord_gap_m(
+    ego_x_m: float, ego_y_m: float, ego_heading_deg: float, rear_x_m: float, rear_y_m: float
+) -> float:
+    """Bumper-to-bumper gap [m] as a V2V system computes it from two positions: the straight distance from
+    the ego's front bumper to the leader's rear, negative when that point is not ahead of the ego.
+
+    Unlike the projection on the ego's heading it stays close to the distance along the road in curves
+    (a chord, not a projection that shrinks to zero after a 90-degree bend).
+    """
+    ahead = along_heading_gap_m(ego_x_m, ego_y_m, ego_heading_deg, rear_x_m, rear_y_m)
+    dist = math.hypot(rear_x_m - ego_x_m, rear_y_m - ego_y_m)
+    return dist if ahead > 0.0 else -dist
+
+
 def time_gap_s(gap_m: float, speed_mps: float, cap_s: float) -> float:
     """Time gap [s] = gap / own speed, saturated at ``cap_s``.
 

@@ -33,7 +33,7 @@ import math
 from dataclasses import dataclass
 from typing import Literal
 
-from cosim.adas.common import EventRecorder, VehicleState, along_heading_gap_m, heading_unit, time_gap_s
+from cosim.adas.common import EventRecorder, VehicleState, chord_gap_m, heading_unit, time_gap_s
 
 Level = Literal["none", "advisory", "warning"]
 DataStatus = Literal["ok", "no_cam", "stale"]
@@ -132,7 +132,7 @@ def cam_gap_m(ego: VehicleState, cam: CamData, age_s: float, mode: str) -> float
     """Gap [m] from the ego's front bumper to the leader's rear as estimated from a CAM of age ``age_s``."""
     fx, fy = extrapolate_cam(cam, age_s, mode)
     ux, uy = heading_unit(cam.heading_deg)
-    return along_heading_gap_m(
+    return chord_gap_m(
         ego.x_m, ego.y_m, ego.heading_deg, fx - ux * cam.length_m, fy - uy * cam.length_m
     )
 
@@ -140,7 +140,7 @@ def cam_gap_m(ego: VehicleState, cam: CamData, age_s: float, mode: str) -> float
 def ground_truth_gap_m(ego: VehicleState, leader: VehicleState) -> float:
     """Same geometry as system B, on the true states [m]."""
     rx, ry = leader.rear_xy()
-    return along_heading_gap_m(ego.x_m, ego.y_m, ego.heading_deg, rx, ry)
+    return chord_gap_m(ego.x_m, ego.y_m, ego.heading_deg, rx, ry)
 
 
 def ground_truth_time_gap(

@@ -140,7 +140,16 @@ def load_trace(path: str | Path) -> TimeGapTrace:
     path = Path(path)
     if path.suffix.lower() == ".csv":
         return load_trace_csv(path)
-    raise CosimError(f"cannot read a time-gap trace from {path}: expected a .csv file (timegap.csv)")
+    if path.suffix.lower() == ".mcap":
+        from cosim.experiment.analysis import timegap_columns
+        from cosim.log import read
+
+        log = read(path, topics=["/adas/state"])
+        if "/adas/state" not in log.topics:
+            raise CosimError(f"{path} has no /adas/state topic: not a run with an ego and assistance systems")
+        start = float(log.metadata.get("experiment", {}).get("start_s", 0.0))
+        return TimeGapTrace.from_columns(timegap_columns(log, start), source=str(path))
+    raise CosimError(f"cannot read a time-gap trace from {path}: expected timegap.csv or run.mcap")
 
 
 @dataclass(frozen=True)

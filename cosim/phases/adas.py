@@ -2,7 +2,8 @@
 
 Which system the driver sees is ``AdasPhase.active`` ('none' | 'A' | 'B'), set by the config or, in an
 experiment, by the protocol's current phase. Both systems are evaluated every step so that the log shows
-what each would have displayed, next to the ground-truth time gap to the vehicle SUMO sees ahead.
+what each would have displayed, next to the ground-truth time gap: SUMO's along-the-road gap to the
+vehicle ahead on the ego's lane, divided by the ego's speed.
 """
 
 from __future__ import annotations
@@ -16,7 +17,8 @@ import numpy as np
 
 from cosim.adas import RearStereoWarning, V2VTimeGapWarning, VehicleState
 from cosim.adas.rear_stereo import RearWarningParams
-from cosim.adas.v2v_timegap import CamData, TimeGapParams, ground_truth_time_gap
+from cosim.adas.common import time_gap_s
+from cosim.adas.v2v_timegap import CamData, TimeGapParams
 from cosim.scenario.buildings import load_buildings
 from cosim.sumo_bridge.bridge import EGO_ID
 from cosim.vanet.obu import LeaderCriteria
@@ -61,10 +63,12 @@ class AdasPhase:
         lead = sim.bridge.leader(EGO_ID, self.config.leader_search_m)
         leader_slot = w.slot_of.get(lead[0]) if lead else None
         true_gap_s = math.nan
+        gap_m = None
         a_out = None
         if leader_slot is not None:
             leader = self._state(leader_slot)
-            true_gap_s = ground_truth_time_gap(me, leader, self.config.v2v)
+            gap_m = lead[1] + sim.bridge.min_gap(EGO_ID)  # along the road, bumper to bumper
+            true_gap_s = time_gap_s(gap_m, me.speed_mps, self.config.v2v.time_gap_cap_s)
             a_out = self.system_a.update(w.t_s, leader, me)
         b_out = self.system_b.update(w.t_s, me, self._cam_of_leader(sim))
         a_lit = bool(a_out and a_out.display_lit)
@@ -80,7 +84,9 @@ class AdasPhase:
         record = {
             "t_s": w.t_s, "phase": self.phase_name, "system": self.active,
             "time_gap_true_s": _r(true_gap_s), "time_gap_displayed_s": _r(shown), "warning": warning,
-            "leader_id": lead[0] if lead else "", "a_lit": a_lit, "a_perceived": a_seen,
+            "leader_id": lead[0] if lead else "",
+            "leader_speed_mps": _r(w.speed_mps[leader_slot]) if leader_slot is not None else None,
+            "gap_true_m": _r(gap_m), "a_lit": a_lit, "a_perceived": a_seen,
             "a_measured_m": _r(a_out.measured_distance_m if a_out else None), "a_reason": a_out.reason if a_out else "",
             "b_gap_s": _r(b_out.time_gap_s), "b_level": b_out.level, "b_status": b_out.status,
             "b_age_s": _r(b_out.data_age_s), "b_station": self._b_station if self._b_station is not None else -1,

@@ -20,6 +20,7 @@ PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
 CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
+PATH_HALF_WIDTH_M = 1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 
 
 @dataclass(frozen=True)
@@ -102,6 +103,26 @@ class RoutePath:
         out = np.vstack([ends[:1], self.xy[inside], ends[1:]])
         return out if len(out) >= 2 else np.vstack([out, out + 0.1])
 
+    def vehicles_on_path(self, xs: np.ndarray, ys: np.ndarray, s_from: float, s_to: float,
+                         half_width_m: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Arc positions of points lying on the path between ``s_from`` and ``s_to`` (within
+        ``half_width_m`` of its centre line); returns (index into xs, arc position) of those points."""
+        lo = max(0, int(np.searchsorted(self.s, s_from)) - 1)
+        hi = min(len(self.s) - 1, int(np.searchsorted(self.s, s_to)) + 1)
+        a, b = self.xy[lo:hi], self.xy[lo + 1 : hi + 1]
+        if len(a) == 0 or len(xs) == 0:
+            return np.zeros(0, dtype=int), np.zeros(0)
+        d = b - a
+        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+        px, py = xs[:, None], ys[:, None]
+        t = np.clip(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
+        dist2 = (a[:, 0] + t * d[:, 0] - px) ** 2 + (a[:, 1] + t * d[:, 1] - py) ** 2
+        k = np.argmin(dist2, axis=1)
+        rows = np.arange(len(xs))
+        s_at = self.s[lo + k] + t[rows, k] * np.sqrt(seg2[k])
+        on = (dist2[rows, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
+        return rows[on], s_at[on]
+
     def speed_limit(self, s: float) -> tuple[float, float | None, float]:
         """(limit here, next different limit or None, distance to it)."""
         i = max(0, int(np.searchsorted(self.limit_s, s, side="right")) - 1)
@@ -149,13 +170,14 @@ class EgoController:
         self.car = EgoCar(cfg.car, timestep_s=sim.config.timing.physics_timestep_s)
         self.path = RoutePath(sim.net, sim.ego_route)
         p = cfg.car
-        self.driver = make_driver(cfg.driver, np.random.default_rng([sim.config.seed, 11]),
+        self.driver = make_driver(cfg.driver, np.random.default_rng([sim.config.seed, 11, cfg.driver_seed]),
                                   math.radians(p.max_steer_deg), p.wheelbase_m)  # fmt: skip
         self.origin: tuple[float, float] | None = None
         self.controls = Controls()
         self.started = False
         self.percept: Percept | None = None
         self._passed_signs: set[int] = set()
+        sim.add_hook("sumo", self.own_state)
         sim.add_hook("driver", self.drive)
         sim.add_hook("ego", self.integrate)
         sim.add_hook("writeback", self.write_back)
@@ -165,6 +187,15 @@ class EgoController:
         self.origin = (float(cx), float(cy))
         self.car.reset(0.0, 0.0, float(yaw), float(w.speed_mps[slot]))
         self.started = True
+
+    def own_state(self, sim) -> None:
+        """The ego is MuJoCo's: its speed and acceleration in the snapshot come from the physics, not from
+        SUMO's reconstruction of the moveToXY jumps."""
+        slot = sim.world.slot_of.get(EGO_ID)
+        if slot is not None and self.started:
+            st = self.car.state()
+            sim.world.speed_mps[slot] = st.speed_mps
+            sim.world.accel_mps2[slot] = st.accel_mps2
 
     def drive(self, sim) -> None:
         w = sim.world
@@ -178,12 +209,7 @@ class EgoController:
         s_c, _ = self.path.project(cx, cy)
         s_front = s_c + 0.5 * self.car.params.length_m
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
-        kw = {}
-        lead = sim.bridge.leader(EGO_ID, PREVIEW_AHEAD_M)
-        if lead and lead[0] in w.slot_of:
-            gap = lead[1] + sim.bridge.sumo.vehicle.getMinGap(EGO_ID)
-            kw.update(leader_present=True, leader_id=lead[0], leader_gap_m=max(0.0, gap),
-                      leader_speed_mps=float(w.speed_mps[w.slot_of[lead[0]]]))  # fmt: skip
+        kw = self._leader_on_path(w, slot, cx, cy, s_front)
         tls = sim.bridge.next_tls(EGO_ID)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
@@ -206,6 +232,26 @@ class EgoController:
             route_end_dist_m=max(0.0, self.path.length_m - s_front), **kw, **adas,
         )  # fmt: skip
         self.controls = self.driver.act(self.percept, sim.step_s)
+
+    def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
+        """The nearest vehicle whose rear is on the ego's own path ahead: what a driver sees in front of
+        them, whichever SUMO lane it is on (a car the ego is about to change lanes behind, one in a bend)."""
+        near = w.valid & (np.hypot(w.x_m - cx, w.y_m - cy) < PREVIEW_AHEAD_M + 10.0)
+        near[ego_slot] = False
+        idx = np.flatnonzero(near)
+        if idx.size == 0:
+            return {}
+        ux, uy = w.heading_unit()
+        rear_x = w.x_m[idx] - ux[idx] * w.length_m[idx]
+        rear_y = w.y_m[idx] - uy[idx] * w.length_m[idx]
+        half = PATH_HALF_WIDTH_M + 0.5 * w.width_m[idx].mean()
+        rows, s_rear = self.path.vehicles_on_path(rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half)
+        if rows.size == 0:
+            return {}
+        k = int(np.argmin(s_rear))
+        slot = int(idx[rows[k]])
+        return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
+                "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
     @staticmethod
     def _conflict(sim, sign_dist_m: float) -> bool:

@@ -26,7 +26,7 @@ from cosim.scenario.routetable import RouteTable
 
 # vehicles per lane-km present on average. For scale: a free-flowing urban lane carries ~10-20 veh/km,
 # jam density is ~130-150; city-wide averages are far lower because side streets are nearly empty.
-DENSITY_PRESETS = {"low": 2.0, "medium": 5.0, "high": 10.0}
+DENSITY_PRESETS = {"low": 2.0, "medium": 5.0, "medium_high": 7.5, "high": 10.0}  # medium_high: the paper's VII.C
 DENSITY_NAMES = tuple(DENSITY_PRESETS)
 MEAN_SPEED_FRACTION = 0.35  # measured on Krems: SCV trips average ~35 % of the speed limit (junctions, lights)
 
@@ -112,7 +112,7 @@ def corridor_edges(comp: list, route: list[str], corridor_m: float) -> list:
     by_id = {e.getID(): e for e in comp}
     line = shapely.MultiLineString([[p[:2] for p in by_id[r].getShape()] for r in route if r in by_id])
     area = shapely.buffer(line, corridor_m)
-    lines = shapely.linestrings([[p[:2] for p in e.getShape()] for e in comp])
+    lines = [shapely.LineString([p[:2] for p in e.getShape()]) for e in comp]
     near = shapely.intersects(area, lines)
     return [e for e, ok in zip(comp, near, strict=True) if ok]
 
@@ -135,7 +135,7 @@ class Demand:
 
 def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehaviour, rng: np.random.Generator,
                  table: RouteTable, out: Path, workdir: Path) -> Demand:  # fmt: skip
-    comp = drivable_component(net)
+    comp = full = drivable_component(net)
     ego_route = choose_ego_route(net, comp, np.random.default_rng([int(rng.integers(2**31)), 1]),
                                  params.ego_route_length_m, table, net_file, workdir)  # fmt: skip
     if params.area == "ego_route":
@@ -149,8 +149,8 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     w_orig /= w_orig.sum()
     dest_ids = [e.getID() for e in comp]
     orig_ids = [e.getID() for e in origins]
-    speed = {e.getID(): e.getSpeed() for e in comp}
-    length = {e.getID(): e.getLength() for e in comp}
+    speed = {e.getID(): e.getSpeed() for e in full}  # routes may leave the corridor
+    length = {e.getID(): e.getLength() for e in full}
 
     def draw(n: int) -> list[tuple[str, str]]:
         pairs: list[tuple[str, str]] = []

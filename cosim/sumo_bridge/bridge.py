@@ -174,6 +174,10 @@ class SumoBridge:
             return SumoEvent("ego_write_failed", EGO_ID, str(exc).splitlines()[0][:200])
         return None
 
+    def min_gap(self, vid: str) -> float:
+        """SUMO's getLeader distance excludes the follower's minGap; add this for the bumper gap [m]."""
+        return self.sumo.vehicle.getMinGap(vid)
+
     def leader(self, vid: str, distance_m: float = 200.0) -> tuple[str, float] | None:
         res = self.sumo.vehicle.getLeader(vid, distance_m)
         return (res[0], res[1]) if res and res[0] else None

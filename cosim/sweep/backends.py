@@ -32,6 +32,17 @@ def available_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _die_with_parent() -> None:
+    """Pool initializer: on Linux, the worker gets SIGKILL when the sweep process dies (no orphan runs)."""
+    try:
+        import ctypes
+        import signal
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 class LocalBackend:
     """A ``concurrent.futures`` process pool with the spawn start method (no state forked from the parent:
     libsumo, open files and threads do not survive ``fork`` well)."""
@@ -45,12 +56,26 @@ class LocalBackend:
         self._pool: ProcessPoolExecutor | None = None
 
     def describe(self) -> str:
-        return f"local process pool, {self.jobs} worker{'s' if self.jobs > 1 else ''}"
+        return f"a local process pool ({self.jobs} worker{'s' if self.jobs > 1 else ''})"
 
     def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:
-            self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("spawn"))
+            self._pool = ProcessPoolExecutor(max_workers=self.jobs, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_die_with_parent)  # fmt: skip
         return self._pool
+
+    def _abort(self) -> None:
+        """Stop now (Ctrl-C, an error in the caller): cancel what is queued and end the running workers; their
+        runs have no result.json and are redone by the next call."""
+        if self._pool is None:
+            return
+        procs = list((getattr(self._pool, "_processes", None) or {}).values())
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            proc.terminate()
+        for proc in procs:
+            proc.join(10)
+        self._pool = None
 
     def map_unordered(self, fn: Callable, items: Iterable) -> Iterator[tuple[Any, Any]]:
         items = list(items)
@@ -72,10 +97,12 @@ class LocalBackend:
                         yield item, WorkerLost("a worker process died (killed or crashed)")
                     except Exception as exc:  # noqa: BLE001 - the runner reports it against the run
                         yield item, exc
-        finally:
-            if broken or pending:  # a broken pool cannot be reused; an abandoned map cancels what is queued
-                self._pool.shutdown(wait=not broken, cancel_futures=True)
-                self._pool = None
+        except BaseException:  # KeyboardInterrupt, or the caller closed the generator early
+            self._abort()
+            raise
+        if broken:  # a broken pool cannot be reused: the next map starts a fresh one
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = None
 
     def close(self) -> None:
         if self._pool is not None:
@@ -126,7 +153,7 @@ class RayBackend:
 
     def describe(self) -> str:
         cpus = int(self.ray.cluster_resources().get("CPU", 0))
-        where = f"cluster {self.address}" if self.address else "local Ray instance"
+        where = f"cluster {self.address}" if self.address else "a local instance"
         cap = f", at most {self.jobs} at a time" if self.jobs and self.address else ""
         return f"Ray ({where}, {cpus} CPUs{cap})"
 

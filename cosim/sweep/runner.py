@@ -201,9 +201,91 @@ def _resolve_overrides(sweep: Sweep, run: RunSpec) -> dict[str, Any]:
     return values
 
 
+def _raw_data(base: Path | None, overrides: dict[str, Any]) -> dict:
+    """The mapping load_run_config validates: the base file with the dotted overrides applied."""
+    from cosim.config import read_yaml
+
+    data = read_yaml(base) if base else {}
+    for key, value in overrides.items():
+        *parents, leaf = key.split(".")
+        node = data
+        for p in parents:
+            node = node.setdefault(p, {}) if isinstance(node, dict) else {}
+        if isinstance(node, dict):
+            node[leaf] = value
+    return data
+
+
+def _precise(exc, data: dict):
+    """The config loader reports any bad key or value inside an optional section (``vanet: VanetParams |
+    None``) as "expected a mapping | null, got {...the whole section...}"; check that section alone to
+    name the key that is wrong."""
+    import typing
+    from typing import get_args, get_type_hints
+
+    from cosim.config import from_dict
+    from cosim.errors import ConfigError
+    from cosim.runconfig import RunConfig
+
+    for _ in range(8):  # one level of optional section per round
+        if not (exc.path and exc.problem.startswith("expected a mapping | null")):
+            return exc
+        tp: Any = RunConfig
+        value: Any = data
+        try:
+            for part in exc.path.split("."):
+                tp = get_type_hints(tp)[part]
+                value = value[part]
+                inner = [a for a in get_args(tp) if a is not type(None)]
+                if typing.get_origin(tp) is not None and len(inner) == 1:
+                    tp = inner[0]
+            from_dict(tp, value, exc.path)
+            return exc
+        except ConfigError as deeper:
+            if deeper.path == exc.path and deeper.problem == exc.problem:
+                return exc
+            exc = deeper
+        except (KeyError, TypeError, AttributeError):
+            return exc
+    return exc
+
+
+def load_config(base: Path | None, overrides: dict[str, Any]):
+    """The resolved RunConfig of one run. Like ``load_run_config`` (map paths resolved the same way), but a
+    null override is applied too (``vanet: null`` turns the radio off) instead of meaning "not given"."""
+    from cosim.config import from_dict
+    from cosim.errors import ConfigError
+    from cosim.runconfig import RunConfig, load_run_config
+
+    given = {k: v for k, v in overrides.items() if v is not None}
+    try:
+        config = load_run_config(base, **given)
+    except ConfigError as exc:
+        raise _precise(exc, _raw_data(base, given)) from None
+    nulls = [k for k, v in overrides.items() if v is None]
+    if not nulls:
+        return config
+    data = to_dict(config)
+    for key in nulls:
+        *parents, leaf = key.split(".")
+        node: dict | None = data
+        for p in parents:
+            if node.get(p, {}) is None:  # a parent is null already: nothing left to null
+                node = None
+                break
+            node = node.setdefault(p, {})  # an unknown key is created here and rejected by from_dict
+            if not isinstance(node, dict):
+                raise ConfigError(key, "cannot override inside a non-mapping value")
+        if node is not None:
+            node[leaf] = None
+    try:
+        return from_dict(RunConfig, data)
+    except ConfigError as exc:
+        raise _precise(exc, data) from None
+
+
 def plan(sweep: Sweep, out_dir: Path) -> list[PlannedRun]:
     """Resolve every run's config and decide what to do with it (no side effects)."""
-    from cosim.runconfig import load_run_config
     from cosim.scenario import cache_dir
 
     explicit_cache = os.environ.get("COSIM_CACHE_DIR")
@@ -212,7 +294,7 @@ def plan(sweep: Sweep, out_dir: Path) -> list[PlannedRun]:
     for run in sweep.runs():
         run_dir = (out_dir / run.run_id).resolve()
         try:
-            config = load_run_config(sweep.base_config, **_resolve_overrides(sweep, run))
+            config = load_config(sweep.base_config, _resolve_overrides(sweep, run))
         except Exception as exc:  # noqa: BLE001 - ConfigError mostly; anything else is still this run's fault
             res = _failed(run.run_id, run.label(), run.overrides, _one_line(exc), seed=run.seed)
             planned.append(PlannedRun(run, run_dir, None, "failed", res))
@@ -278,7 +360,7 @@ def _prebuild(planned: list[PlannedRun], backend, say: Callable[[str], None]) ->
         else:
             rest += keys[1:]
     if rest:
-        say(f"building {len(rest)} more scenario(s) (other seeds / demand) on the {backend.describe()} ...")
+        say(f"building {len(rest)} more scenario(s) (other seeds / demand) on {backend.describe()} ...")
         for st, outcome in backend.map_unordered(prebuild_scenario, [tasks[k] for k in rest]):
             if isinstance(outcome, str):
                 errors[json.dumps([st.scenario, st.seed], sort_keys=True)] = outcome
@@ -286,7 +368,7 @@ def _prebuild(planned: list[PlannedRun], backend, say: Callable[[str], None]) ->
     return errors
 
 
-def _execute(tasks: list[RunTask], backend, on_result: Callable[[dict], None]) -> None:
+def _execute(tasks: list[RunTask], backend, on_result: Callable[[dict], None], say: Callable[[str], None]) -> None:
     """Run the tasks; a run whose worker died is retried once, then recorded as failed."""
     attempts: Counter[str] = Counter()
     pending = tasks
@@ -308,6 +390,8 @@ def _execute(tasks: list[RunTask], backend, on_result: Callable[[dict], None]) -
                     attempts[task.run_id] += 1
                     progress = True
                 if attempts[task.run_id] < MAX_ATTEMPTS:
+                    if Path(task.run_dir).exists():
+                        say(f"worker died while running {task.run_id} ({outcome}); running it again")
                     lost.append(task)
                     continue
                 error = f"worker process died while running this run ({MAX_ATTEMPTS} attempts): {outcome}"
@@ -360,7 +444,7 @@ def run_sweep(sweep: Sweep, *, backend=None, out_dir: str | Path | None = None, 
     say(f"sweep {sweep.spec.name}: {len(planned)} runs, {len(done)} already done"
         + (f", {redo} redone (config changed)" if redo else "")
         + (f", {len(bad)} with a bad config" if bad else "")
-        + (f"; {len(todo)} to run on the {backend.describe()}" if todo else "") + f" -> {out}")  # fmt: skip
+        + (f"; {len(todo)} to run on {backend.describe()}" if todo else "") + f" -> {out}")  # fmt: skip
     results: dict[str, dict] = {p.run.run_id: p.result for p in done}
     reporter = Reporter(len(todo) + len(bad), say)
 
@@ -390,7 +474,7 @@ def run_sweep(sweep: Sweep, *, backend=None, out_dir: str | Path | None = None, 
                     finished(res)
                 else:
                     ready.append(p.task)
-            _execute(ready, backend, finished)
+            _execute(ready, backend, finished, say)
     finally:
         if own_backend and backend is not None:
             backend.close()

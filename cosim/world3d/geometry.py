@@ -234,7 +234,9 @@ def hexahedron(corners: np.ndarray, skip_bottom: bool = True) -> MeshData:
     return quads(c[np.asarray(faces)])
 
 
-def box(x0: float, x1: float, y0: float, y1: float, z0: float, z1: float, skip_bottom: bool = True) -> MeshData:
+def box(
+    x0: float, x1: float, y0: float, y1: float, z0: float, z1: float, skip_bottom: bool = True
+) -> MeshData:
     """An axis-aligned box."""
     c = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0]])
     top = c.copy()
@@ -259,7 +261,9 @@ def prism_y(cx: float, cz: float, radius: float, y0: float, y1: float, sides: in
     # side quads: outward normal; going around counter-clockwise seen from +y
     for i in range(sides):
         j = (i + 1) % sides
-        parts.append(quads(np.array([[[x[i], y1, z[i]], [x[j], y1, z[j]], [x[j], y0, z[j]], [x[i], y0, z[i]]]])))
+        parts.append(
+            quads(np.array([[[x[i], y1, z[i]], [x[j], y1, z[j]], [x[j], y0, z[j]], [x[i], y0, z[i]]]]))
+        )
     # caps: fan triangles; +y cap faces +y, -y cap faces -y
     for y, flip in ((y1, False), (y0, True)):
         v = np.stack([x, np.full(sides, y), z], axis=1)
@@ -320,7 +324,9 @@ def posts(xy: np.ndarray, height_m: float, half_m: float = 0.04) -> MeshData:
         return MeshData(np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int32))
     one = box(-half_m, half_m, -half_m, half_m, 0.0, height_m)
     nv = len(one.vertices)
-    verts = (one.vertices[None] + np.concatenate([xy, np.zeros((len(xy), 1))], axis=1)[:, None]).reshape(-1, 3)
+    verts = (one.vertices[None] + np.concatenate([xy, np.zeros((len(xy), 1))], axis=1)[:, None]).reshape(
+        -1, 3
+    )
     faces = (one.faces[None] + nv * np.arange(len(xy), dtype=np.int32)[:, None, None]).reshape(-1, 3)
     return MeshData(verts, faces)
 
@@ -368,24 +374,42 @@ class CarShape:
             raise ValueError("CarShape: need wheel_radius_m < beltline_m < height_m")
 
 
-def car_meshes(shape: CarShape) -> tuple[MeshData, MeshData, MeshData]:
-    """(body in the car's colour, dark parts: glasshouse + wheels, the two rear lamps) of one car."""
+def car_meshes(shape: CarShape, dashboard: bool = False) -> tuple[MeshData, MeshData, MeshData]:
+    """(body in the car's colour, dark parts: glasshouse + wheels, the two rear lamps) of one car.
+
+    The glasshouse is closed, so from a camera inside it all its faces are back faces and are culled: the
+    driver looks out through it. ``dashboard`` adds a dark dashboard under the windscreen (for the ego),
+    which hides the body's top and bonnet from the driver's eye as a real dashboard does.
+    """
     p = shape
     hl, hw = 0.5 * p.length_m, 0.5 * p.width_m
     sill = 0.28  # [m] underbody above the road
-    body = box(-hl, hl, -hw, hw, sill, p.beltline_m)
     cab_x0, cab_x1 = -hl + p.trunk_m, hl - p.hood_m
+    # body: a box up to the beltline behind the windscreen, and a bonnet sloping down to the front
+    rear = box(-hl, cab_x1, -hw, hw, sill, p.beltline_m)
+    nose_z = p.beltline_m - 0.2
+    corners = np.array([
+        [cab_x1, -hw, sill], [hl, -hw, sill], [hl, hw, sill], [cab_x1, hw, sill],
+        [cab_x1, -hw, p.beltline_m], [hl, -hw, nose_z], [hl, hw, nose_z], [cab_x1, hw, p.beltline_m],
+    ])  # fmt: skip
+    body = merge([rear, hexahedron(corners)])
     glass = frustum(cab_x0, cab_x1, hw - 0.06, p.beltline_m, p.height_m - 0.05, cab_x0 + 0.45, cab_x1 - 0.55,
                     hw - 0.18)  # fmt: skip
     roof = box(cab_x0 + 0.45, cab_x1 - 0.55, -(hw - 0.18), hw - 0.18, p.height_m - 0.05, p.height_m)
     xf = hl - p.front_overhang_m
     xr = xf - p.wheelbase_m
     r = p.wheel_radius_m
-    wheels = [prism_y(x, r, r, y0, y1) for x in (xf, xr) for (y0, y1) in ((hw - 0.22, hw + 0.01), (-hw - 0.01, -hw + 0.22))]
+    wheels = [
+        prism_y(x, r, r, y0, y1)
+        for x in (xf, xr)
+        for (y0, y1) in ((hw - 0.22, hw + 0.01), (-hw - 0.01, -hw + 0.22))
+    ]
     lamp_z0, lamp_z1 = 0.62, 0.8
     lamps = merge([
         box(-hl - 0.02, -hl + 0.02, hw - 0.38, hw - 0.08, lamp_z0, lamp_z1),  # left
         box(-hl - 0.02, -hl + 0.02, -hw + 0.08, -hw + 0.38, lamp_z0, lamp_z1),  # right
     ])  # fmt: skip
-    return merge([body, roof]), merge([glass, *wheels]), lamps
-
+    dark = [glass, *wheels]
+    if dashboard:
+        dark.append(box(cab_x1 - 1.5, cab_x1, -hw - 0.01, hw + 0.01, p.beltline_m - 0.1, p.beltline_m + 0.02))
+    return merge([body, roof]), merge(dark), lamps

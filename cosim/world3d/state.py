@@ -46,7 +46,12 @@ class VehicleFrame:
     def __post_init__(self) -> None:
         n = len(self.ids)
         object.__setattr__(self, "ids", tuple(self.ids))
-        for name, dtype in (("x_m", np.float64), ("y_m", np.float64), ("yaw_rad", np.float64), ("braking", bool)):
+        for name, dtype in (
+            ("x_m", np.float64),
+            ("y_m", np.float64),
+            ("yaw_rad", np.float64),
+            ("braking", bool),
+        ):
             arr = np.asarray(getattr(self, name), dtype=dtype).reshape(-1)
             if len(arr) != n:
                 raise ValueError(f"VehicleFrame.{name} has {len(arr)} entries for {n} ids")
@@ -69,8 +74,8 @@ class FrameState:
     ego: EgoPose | None  # None: no ego (cameras then look at the scene origin)
     vehicles: VehicleFrame = field(default_factory=VehicleFrame.empty)
     lights: dict[str, str] = field(default_factory=dict)  # traffic-light id -> SUMO state string ('GrYy...')
-    leader_id: str | None = None  # the vehicle whose rear display (system A) is shown
-    rear_display_lit: bool = False  # system A's 'keep distance' display on that vehicle is on
+    leader_id: str | None = None  # the ego's leader: the vehicle that carries system A's rear display
+    rear_display_lit: bool | None = None  # that display is lit (True) / dark (False); None = no system A
     hud: HudState | None = None
 
 
@@ -85,7 +90,9 @@ class VehiclePool:
         self.slot_of: dict[str, int] = {}
         self._free = list(range(size - 1, -1, -1))  # pop() gives the lowest
 
-    def assign(self, ids: tuple[str, ...] | list[str], dist_m: np.ndarray, max_dist_m: float = math.inf) -> np.ndarray:
+    def assign(
+        self, ids: tuple[str, ...] | list[str], dist_m: np.ndarray, max_dist_m: float = math.inf
+    ) -> np.ndarray:
         """Pool slot per vehicle ((N,) int, -1 = not shown) for this frame.
 
         dist_m: (N,) float64 [m] distance to the viewer; vehicles farther than max_dist_m are never shown.
@@ -116,3 +123,44 @@ class VehiclePool:
             self.slot_of[ids[i]] = slot
             out[i] = slot
         return out
+
+
+def _lerp_angle(a: np.ndarray | float, b: np.ndarray | float, t: float):
+    """Angles [rad] from a to b by the shorter way round."""
+    return a + t * ((np.asarray(b) - a + np.pi) % (2 * np.pi) - np.pi)
+
+
+class Interpolator:
+    """Frames between two states ``a`` (earlier) and ``b``: poses blend linearly (angles the short way);
+    vehicles present in only one of them are shown from ``b`` (a newcomer) or not at all (gone by ``b``);
+    lights, displays and the HUD are ``b``'s. The id matching is done once per pair."""
+
+    def __init__(self, a: FrameState, b: FrameState) -> None:
+        self.a, self.b = a, b
+        index_a = {vid: i for i, vid in enumerate(a.vehicles.ids)}
+        self._ia = np.fromiter((index_a.get(vid, -1) for vid in b.vehicles.ids), dtype=np.int64,
+                               count=len(b.vehicles))  # fmt: skip
+        self._both = self._ia >= 0
+
+    def at(self, alpha: float) -> FrameState:
+        """The state at fraction ``alpha`` in [0, 1] of the way from a to b."""
+        t = min(1.0, max(0.0, float(alpha)))
+        a, b = self.a, self.b
+        ego = b.ego
+        if a.ego is not None and b.ego is not None:
+            ea, eb = a.ego, b.ego
+            ego = EgoPose(
+                ea.x_m + t * (eb.x_m - ea.x_m), ea.y_m + t * (eb.y_m - ea.y_m),
+                float(_lerp_angle(ea.yaw_rad, eb.yaw_rad, t)), ea.z_m + t * (eb.z_m - ea.z_m),
+                ea.pitch_rad + t * (eb.pitch_rad - ea.pitch_rad), ea.roll_rad + t * (eb.roll_rad - ea.roll_rad),
+                eb.braking,
+            )  # fmt: skip
+        vb, va = b.vehicles, a.vehicles
+        x, y, yaw = vb.x_m.copy(), vb.y_m.copy(), vb.yaw_rad.copy()
+        m, ia = self._both, self._ia[self._both]
+        x[m] = va.x_m[ia] + t * (vb.x_m[m] - va.x_m[ia])
+        y[m] = va.y_m[ia] + t * (vb.y_m[m] - va.y_m[ia])
+        yaw[m] = _lerp_angle(va.yaw_rad[ia], vb.yaw_rad[m], t)
+        vehicles = VehicleFrame(vb.ids, x, y, yaw, vb.braking)
+        return FrameState(a.t_s + t * (b.t_s - a.t_s), ego, vehicles, b.lights, b.leader_id, b.rear_display_lit,
+                          b.hud)  # fmt: skip

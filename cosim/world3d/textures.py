@@ -66,7 +66,9 @@ def _draw_sign(key: str, cell: int) -> Image.Image:
     if key in ("stop", "allway_stop"):
         pts = [(c + r * np.cos(a), c + r * np.sin(a)) for a in np.pi / 8 + np.pi / 4 * np.arange(8)]
         d.polygon(pts, fill=WHITE)
-        pts = [(c + (r - 5) * np.cos(a), c + (r - 5) * np.sin(a)) for a in np.pi / 8 + np.pi / 4 * np.arange(8)]
+        pts = [
+            (c + (r - 5) * np.cos(a), c + (r - 5) * np.sin(a)) for a in np.pi / 8 + np.pi / 4 * np.arange(8)
+        ]
         d.polygon(pts, fill=RED)
         d.text((c, c), "STOP", fill=WHITE, font=font(int(cell * 0.27)), anchor="mm")
     elif key == "give_way":  # triangle pointing down, red border
@@ -80,7 +82,13 @@ def _draw_sign(key: str, cell: int) -> Image.Image:
             m = int(0.11 * cell)
             d.ellipse((m, m, cell - m, cell - m), fill=WHITE)
             value = key.split(":", 1)[1]
-            d.text((c, c), value, fill=BLACK, font=font(int(cell * (0.42 if len(value) < 3 else 0.33))), anchor="mm")
+            d.text(
+                (c, c),
+                value,
+                fill=BLACK,
+                font=font(int(cell * (0.42 if len(value) < 3 else 0.33))),
+                anchor="mm",
+            )
     elif key == "one_way":
         d.rectangle((0, 0, cell, cell), fill=BLUE)
         d.rectangle((4, 4, cell - 5, cell - 5), outline=WHITE, width=3)

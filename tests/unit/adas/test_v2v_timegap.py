@@ -35,12 +35,21 @@ def test_fresh_cam_gives_the_true_gap():
     assert ground_truth_time_gap(e, truth) == pytest.approx(out.time_gap_s)
 
 
-def test_gap_is_along_the_ego_heading():
-    # ego heading east, leader 30 m east (rear at 25 m) and 3 m to the side: only the along-heading part counts
+def test_gap_is_the_straight_distance_to_the_leaders_rear():
+    # ego heading east, leader 30 m east (rear at 25 m) and 3 m to the side: the chord from bumper to rear
     e = VehicleState(0.0, 0.0, 90.0, 12.5, 4.5)
     cam = CamData(0.0, 30.0, 3.0, 90.0, 12.5, LEAD_LEN)
     out = V2VTimeGapWarning().update(0.0, e, cam)
-    assert out.gap_m == pytest.approx(25.0) and out.time_gap_s == pytest.approx(2.0)
+    assert out.gap_m == pytest.approx(math.hypot(25.0, 3.0)) and out.time_gap_s == pytest.approx(out.gap_m / 12.5)
+
+
+def test_gap_stays_positive_around_a_bend():
+    # after a 90-degree left bend the leader drives north 20 m left of the ego's line: a projection on the
+    # ego's heading would give ~0 m, the chord gives the distance a V2V system measures
+    e = VehicleState(0.0, 0.0, 90.0, 10.0, 4.5)
+    cam = CamData(0.0, 15.0, 20.0 + LEAD_LEN, 0.0, 10.0, LEAD_LEN)
+    out = V2VTimeGapWarning().update(0.0, e, cam)
+    assert out.gap_m == pytest.approx(25.0) and out.time_gap_s == pytest.approx(2.5)
 
 
 def test_extrapolation_by_age():

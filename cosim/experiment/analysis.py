@@ -1,0 +1,128 @@
+"""From a participant's log to the paper's Fig. 4 and the summary numbers."""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from cosim.log import Log
+from cosim.vanet.channel import OUTCOME_NAMES
+
+HARD_BRAKE_MPS2 = -4.0  # deceleration counted as hard braking (a common naturalistic-driving threshold)
+NO_LEADER_GAP_S = 9.99  # system B caps the time gap at 10 s; at the cap nobody is being followed
+
+
+def timegap_columns(log: Log, start_s: float) -> dict[str, np.ndarray]:
+    """timegap.csv's columns from /adas/state, time relative to the protocol start."""
+    a = log.topics["/adas/state"]
+    keep = a["t_s"] >= start_s - 1e-9
+    return {
+        "t_s": np.round(a["t_s"][keep] - start_s, 3),
+        "phase": a["phase"][keep],
+        "system": a["system"][keep],
+        "time_gap_true_s": a["time_gap_true_s"][keep].astype(float),
+        "time_gap_displayed_s": np.asarray(a["time_gap_displayed_s"][keep], dtype=float),
+        "warning": a["warning"][keep],
+    }
+
+
+def write_timegap_csv(cols: dict[str, np.ndarray], path: Path) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        names = list(cols)
+        w.writerow(names)
+        for row in zip(*(cols[n] for n in names), strict=True):
+            w.writerow(["" if isinstance(v, float) and math.isnan(v) else v for v in row])
+
+
+def _onsets(flags: np.ndarray) -> int:
+    f = np.asarray(flags, dtype=bool)
+    return int(np.count_nonzero(f[1:] & ~f[:-1]) + (1 if f.size and f[0] else 0))
+
+
+def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list[dict]:
+    """Per phase: time-gap statistics, warnings, hard braking, minimum TTC, V2V delivery to the leader."""
+    a = log.topics["/adas/state"]
+    e = log.topics["/ego/state"]
+    rx = log.topics.get("/vanet/rx")
+    out = []
+    for phase in dict.fromkeys(cols["phase"]):
+        m = cols["phase"] == phase
+        t0, t1 = cols["t_s"][m][0] + start_s, cols["t_s"][m][-1] + start_s
+        tg = cols["time_gap_true_s"][m]
+        following = np.isfinite(tg) & (tg < NO_LEADER_GAP_S)
+        warn = cols["warning"][m]
+        am = (a["t_s"] >= t0) & (a["t_s"] <= t1)
+        gap, ls = a["gap_true_m"][am].astype(float), a["leader_speed_mps"][am].astype(float)
+        em = (e["t_s"] >= t0) & (e["t_s"] <= t1)
+        speed = e["physics_speed_mps"][em].astype(float) if "physics_speed_mps" in e else e["speed_mps"][em]
+        es = np.interp(a["t_s"][am], e["t_s"][em], speed) if em.any() else np.zeros(am.sum())
+        closing = es - ls
+        ttc = np.where((closing > 0.1) & np.isfinite(gap), gap / np.where(closing > 0.1, closing, 1.0), np.inf)
+        accel = np.gradient(speed, e["t_s"][em]) if em.sum() > 2 else np.zeros(0)
+        pdr = math.nan
+        if rx is not None and "b_station" in a:
+            rm = (rx["t_s"] >= t0) & (rx["t_s"] <= t1)
+            st = np.interp(rx["t_s"][rm], a["t_s"][am], a["b_station"][am].astype(float)) if am.any() else []
+            hit = rx["sender_station_id"][rm] == np.round(st)
+            if np.any(hit):
+                pdr = float(np.mean(rx["outcome"][rm][hit] == OUTCOME_NAMES.index("ok")))
+        out.append({
+            "phase": str(phase), "system": str(cols["system"][m][0]),
+            "duration_s": round(float(cols["t_s"][m][-1] - cols["t_s"][m][0]), 1),
+            "following_share": round(float(following.mean()), 3),
+            "time_gap_mean_s": _r(np.mean(tg[following])) if following.any() else None,
+            "time_gap_sd_s": _r(np.std(tg[following])) if following.any() else None,
+            "share_below_2s": _r(np.mean(tg[following] < 2.0)) if following.any() else None,
+            "share_below_1s": _r(np.mean(tg[following] < 1.0)) if following.any() else None,
+            "warnings": _onsets(warn == "warning"), "advisories": _onsets(warn == "advisory"),
+            "hard_braking_events": _onsets(accel < HARD_BRAKE_MPS2),
+            "min_ttc_s": _r(np.min(ttc)) if np.isfinite(ttc).any() else None,
+            "v2v_pdr_to_leader": _r(pdr) if math.isfinite(pdr) else None,
+        })  # fmt: skip
+    return out
+
+
+def _r(v, nd: int = 3):
+    return None if v is None or not math.isfinite(float(v)) else round(float(v), nd)
+
+
+def plot_timegap(cols: dict[str, np.ndarray], path: Path, title: str) -> None:
+    """The paper's Fig. 4 view: time gap over time per phase, warnings marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = cols["t_s"]
+    fig, ax = plt.subplots(figsize=(11, 3.8), dpi=110)
+    tg = np.where(cols["time_gap_true_s"] < NO_LEADER_GAP_S, cols["time_gap_true_s"], np.nan)
+    ax.plot(t, tg, color="0.15", lw=1.0, label="time gap (ground truth)")
+    shown = cols["time_gap_displayed_s"]
+    if np.isfinite(shown).any():
+        ax.plot(t, np.where(shown < NO_LEADER_GAP_S, shown, np.nan), color="tab:blue", lw=0.8, alpha=0.8,
+                label="time gap shown by system B")  # fmt: skip
+    for level, color in (("advisory", "gold"), ("warning", "tab:red")):
+        on = cols["warning"] == level
+        if on.any():
+            ax.fill_between(t, 0, 1, where=on, color=color, alpha=0.25, transform=ax.get_xaxis_transform(),
+                            label=f"{level} shown" if level == "advisory" else "warning shown")  # fmt: skip
+    for phase in dict.fromkeys(cols["phase"]):
+        m = cols["phase"] == phase
+        t0 = t[m][0]
+        ax.axvline(t0, color="0.5", lw=0.8, ls="--")
+        ax.text(t0 + 3, 0.97, f"{phase} ({cols['system'][m][0]})", transform=ax.get_xaxis_transform(), va="top", fontsize=9)
+    for y in (1.0, 2.0, 3.0):
+        ax.axhline(y, color="0.8", lw=0.6, zorder=0)
+    ax.set_xlim(t[0], t[-1])
+    ax.set_ylim(0, 6)
+    ax.set_xlabel("time since start of the drive [s]")
+    ax.set_ylabel("time gap to the leader [s]")
+    ax.set_title(title)
+    ax.legend(loc="upper right", fontsize=8, ncols=2)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

@@ -1,0 +1,158 @@
+"""Run every participant of an experiment (in parallel processes) and write results/<name>/."""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from cosim.experiment.analysis import phase_summary, plot_timegap, timegap_columns, write_timegap_csv
+from cosim.experiment.protocol import ExperimentConfig, participant_config, start_time_s
+
+
+class PhaseSchedule:
+    """Sets the active assistance system from the protocol (hook in the 'sumo' phase, before vanet/adas)."""
+
+    def __init__(self, sim, phases, start_s: float):
+        self.sim = sim
+        self.bounds = []
+        t = start_s
+        for p in phases:
+            self.bounds.append((t, t + p.duration_s, p))
+            t += p.duration_s
+        sim.add_hook("sumo", self)
+
+    def __call__(self, sim) -> None:
+        adas = sim.adas
+        if adas is None:
+            return
+        t = sim.world.t_s
+        for t0, t1, p in self.bounds:
+            if t0 <= t < t1 or (p is self.bounds[-1][2] and t0 <= t <= t1 + 1e-6):
+                adas.active, adas.phase_name = p.system, p.name
+                return
+        adas.active, adas.phase_name = "none", "pre" if t < self.bounds[0][0] else "post"
+
+
+def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path, progress=None) -> dict:
+    from cosim.log import read
+    from cosim.sim import Simulation
+
+    part = exp.participants[index]
+    cfg = participant_config(exp, index, base)
+    pdir = out_dir / part.id
+    pdir.mkdir(parents=True, exist_ok=True)
+    start = start_time_s(exp, cfg.ego.depart_s)
+    order = exp.order_of(index)
+    t_wall = time.perf_counter()
+    with Simulation(cfg, out_dir=pdir, quiet=True) as sim:
+        PhaseSchedule(sim, order, start)
+        sim.mcap.metadata("experiment", {"name": exp.name, "participant": part.id, "profile": part.profile,
+                                         "start_s": start, "order": ",".join(p.name for p in order)})  # fmt: skip
+        steps = sim.steps_total
+        for k in range(steps):
+            sim.step()
+            if progress is not None and k % 50 == 0:
+                progress[part.id] = k / steps
+        stats = {**sim.stats, "simulated_s": round(sim.world.t_s, 1), "wall_s": round(time.perf_counter() - t_wall, 1)}
+    if progress is not None:
+        progress[part.id] = 1.0
+    log = read(pdir / "run.mcap", topics=["/adas/state", "/ego/state", "/vanet/rx"])
+    cols = timegap_columns(log, start)
+    write_timegap_csv(cols, pdir / "timegap.csv")
+    title = f"{exp.name}: participant {part.id} ({part.profile}), order {' > '.join(p.name for p in order)}"
+    plot_timegap(cols, pdir / "timegap.png", title)
+    return {"participant": part.id, "profile": part.profile, "order": [p.name for p in order],
+            "phases": phase_summary(log, cols, start), "run": stats}  # fmt: skip
+
+
+def _worker(args):
+    exp, index, base, out_dir, progress = args
+    return run_participant(exp, index, base, out_dir, progress)
+
+
+def run_experiment(exp: ExperimentConfig, base: Path, out_dir: Path, jobs: int | None = None, quiet: bool = False) -> dict:
+    from cosim.scenario import build_scenario
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    first = participant_config(exp, 0, base)
+    say = (lambda *a: None) if quiet else print
+    build_scenario(first.scenario.map, config=first.scenario, seed=first.seed, log=say)  # once, before the workers
+    n = len(exp.participants)
+    jobs = max(1, min(jobs or os.cpu_count() or 1, n))
+    t0 = time.perf_counter()
+    ctx = mp.get_context("spawn")
+    with ctx.Manager() as manager:
+        progress = manager.dict({p.id: 0.0 for p in exp.participants})
+        # a fresh process per participant: libsumo runs one simulation per process lifetime
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, max_tasks_per_child=1) as pool:
+            futures = [pool.submit(_worker, (exp, i, base, out_dir, progress)) for i in range(n)]
+            while not all(f.done() for f in futures):
+                time.sleep(1.0)
+                if not quiet:
+                    line = "  ".join(f"{k} {100 * v:3.0f}%" for k, v in sorted(progress.items()))
+                    sys.stderr.write(f"\r{line}  [{time.perf_counter() - t0:5.0f} s]")
+                    sys.stderr.flush()
+            results = [f.result() for f in futures]
+    if not quiet:
+        sys.stderr.write("\n")
+    wall = time.perf_counter() - t0
+    simulated = sum(r["run"]["simulated_s"] if "simulated_s" in r["run"] else 0 for r in results)
+    summary = {"experiment": exp.name, "participants": results, "across": across_participants(results),
+               "wall_s": round(wall, 1), "jobs": jobs, "simulated_s": simulated}  # fmt: skip
+    (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
+    (out_dir / "summary.md").write_text(summary_markdown(summary))
+    return summary
+
+
+def across_participants(results: list[dict]) -> list[dict]:
+    """Per system: the mean over participants of each per-phase number."""
+    by_system: dict[str, list[dict]] = {}
+    for r in results:
+        for ph in r["phases"]:
+            by_system.setdefault(ph["system"], []).append(ph)
+    rows = []
+    for system, phs in by_system.items():
+        row = {"system": system, "n": len(phs)}
+        for key in ("time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
+                    "hard_braking_events", "min_ttc_s", "v2v_pdr_to_leader"):  # fmt: skip
+            vals = [p[key] for p in phs if p.get(key) is not None]
+            row[key] = round(sum(vals) / len(vals), 3) if vals else None
+        rows.append(row)
+    return rows
+
+
+_COLS = [("phase", "phase"), ("system", "system"), ("time_gap_mean_s", "mean TG [s]"), ("time_gap_sd_s", "SD [s]"),
+         ("share_below_2s", "< 2 s"), ("share_below_1s", "< 1 s"), ("warnings", "warnings"),
+         ("hard_braking_events", "hard brakes"), ("min_ttc_s", "min TTC [s]"), ("v2v_pdr_to_leader", "PDR leader"),
+         ("following_share", "following")]  # fmt: skip
+
+
+def _cell(v) -> str:
+    return "–" if v is None else f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def summary_markdown(summary: dict) -> str:
+    lines = [f"# {summary['experiment']}", "",
+             f"{len(summary['participants'])} participants, {summary['simulated_s']:.0f} simulated s in "
+             f"{summary['wall_s']:.0f} s wall ({summary['jobs']} processes).", "",
+             "Time gap (TG) = ground truth to the vehicle ahead while following (TG < 10 s); warnings = onsets of "
+             "the red level (system B) or of the perceived 'keep distance' display (system A).", ""]  # fmt: skip
+    for r in summary["participants"]:
+        lines += [f"## {r['participant']} ({r['profile']}), order: {' > '.join(r['order'])}", "",
+                  "| " + " | ".join(h for _, h in _COLS) + " |", "|" + "---|" * len(_COLS)]  # fmt: skip
+        for ph in r["phases"]:
+            lines.append("| " + " | ".join(_cell(ph.get(k)) for k, _ in _COLS) + " |")
+        lines.append("")
+    lines += ["## Across participants (mean per system)", "",
+              "| system | n | mean TG [s] | SD [s] | < 2 s | < 1 s | warnings | hard brakes | min TTC [s] | PDR leader |",
+              "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for row in summary["across"]:
+        lines.append(f"| {row['system']} | {row['n']} | " + " | ".join(_cell(row[k]) for k in (
+            "time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
+            "hard_braking_events", "min_ttc_s", "v2v_pdr_to_leader")) + " |")  # fmt: skip
+    return "\n".join(lines) + "\n"
