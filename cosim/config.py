@@ -55,6 +55,9 @@ def _convert(value: Any, tp: Any, path: str) -> Any:
         args = get_args(tp)
         if value is None and type(None) in args:
             return None
+        others = [a for a in args if a is not type(None)]
+        if len(others) == 1:  # X | None: report X's own, precise error
+            return _convert(value, others[0], path)
         errors = []
         for arg in args:
             if arg is type(None):

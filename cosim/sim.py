@@ -57,7 +57,9 @@ class Simulation:
     """A co-simulation run. Use as a context manager so SUMO and the log are always closed."""
 
     def __init__(self, config: RunConfig, *, out_dir: str | Path | None = None, gui: bool = False,
-                 quiet: bool = True, scenario: Scenario | None = None, log=None):  # fmt: skip
+                 quiet: bool = True, scenario: Scenario | None = None, log=None,
+                 sumo_args: tuple[str, ...] = ()):  # fmt: skip
+        """``sumo_args`` are extra SUMO options (e.g. devices for a study: ``--device.ssm.explicit ego``)."""
         self.config = config
         self.quiet = quiet
         say = log or (lambda *_: None if quiet else print(*_))
@@ -83,7 +85,8 @@ class Simulation:
         self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
         self.closed = False
         try:
-            self.bridge = SumoBridge(self.scenario.sumocfg, seed=config.seed, step_s=self.step_s, gui=gui)
+            self.bridge = SumoBridge(self.scenario.sumocfg, seed=config.seed, step_s=self.step_s, gui=gui,
+                                     extra_args=sumo_args)  # fmt: skip
             if self.out_dir is not None:
                 self.mcap = McapLog(self.out_dir / "run.mcap", flush_every_s=config.log.flush_every_s)
                 self._write_metadata()

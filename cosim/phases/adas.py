@@ -90,6 +90,7 @@ class AdasPhase:
             "a_measured_m": _r(a_out.measured_distance_m if a_out else None), "a_reason": a_out.reason if a_out else "",
             "b_gap_s": _r(b_out.time_gap_s), "b_level": b_out.level, "b_status": b_out.status,
             "b_age_s": _r(b_out.data_age_s), "b_station": self._b_station if self._b_station is not None else -1,
+            "b_leader_id": self._vehicle_of_station(sim, self._b_station),
         }  # fmt: skip
         sim.outputs["adas"] = record
         if sim.mcap is not None:
@@ -98,6 +99,15 @@ class AdasPhase:
             events = [dataclasses.asdict(e) for e in self.system_a.pop_events() + self.system_b.pop_events()]
             if events:
                 log["/adas/events"] = {"t_s": w.t_s, "events": events}
+
+    @staticmethod
+    def _vehicle_of_station(sim, station: int | None) -> str:
+        """The vehicle id behind a station id (for the log; system B itself never uses it)."""
+        if station is None or sim.vanet is None:
+            return ""
+        ids = sim.vanet.layer.station_id
+        hits = np.flatnonzero(ids[: sim.world.capacity] == station)
+        return next((sim.world.ids[h] for h in hits if sim.world.valid[h]), "") or ""
 
     def _cam_of_leader(self, sim) -> CamData | None:
         """System B sees only CAM data: the OBU picks the leader by criteria a-d, g, then its newest CAM."""

@@ -232,8 +232,8 @@ def test_csv_round_trip_and_compare_files(tmp_path):
 def test_csv_errors(tmp_path):
     with pytest.raises(CosimError, match="does not exist"):
         load_trace_csv(tmp_path / "nope.csv")
-    with pytest.raises(CosimError, match="expected a .csv"):
-        load_trace(tmp_path / "run.mcap")
+    with pytest.raises(CosimError, match="expected timegap.csv or run.mcap"):
+        load_trace(tmp_path / "run.json")
     p = tmp_path / "bad.csv"
     p.write_text("t_s,phase,system,time_gap_true_s,warning\n0,b,none,1.0,none\n")
     with pytest.raises(CosimError, match="missing column.*time_gap_displayed_s"):

@@ -1,0 +1,111 @@
+"""The experiment protocol end to end, its golden time-gap trace, and system B against SUMO's own TGAP."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.experiment.compare import compare_files
+from cosim.experiment.protocol import load_experiment
+from cosim.experiment.runner import run_experiment
+from cosim.log import read
+from cosim.runconfig import load_run_config
+from cosim.sim import Simulation
+
+ROOT = Path(__file__).resolve().parents[2]
+GOLDEN = ROOT / "tests" / "golden" / "paper_P1_3x20s.csv"
+
+
+@pytest.fixture(scope="module")
+def short_experiment(tmp_path_factory):
+    """configs/experiment.yaml with 20-s phases and two participants (both system orders)."""
+    exp, base = load_experiment(ROOT / "configs" / "experiment.yaml", participants=2, phase_duration_s=20)
+    out = tmp_path_factory.mktemp("exp")
+    summary = run_experiment(exp, base, out, jobs=2, quiet=True)
+    return out, summary
+
+
+def test_summary_has_the_three_phases_per_participant(short_experiment):
+    out, summary = short_experiment
+    for part, order in zip(summary["participants"], (["baseline", "system_A", "system_B"],
+                                                       ["baseline", "system_B", "system_A"]), strict=True):  # fmt: skip
+        assert [p["phase"] for p in part["phases"]] == order
+        assert [p["system"] for p in part["phases"]] == [{"baseline": "none", "system_A": "A", "system_B": "B"}[o] for o in order]
+        assert part["run"]["collisions"] == 0 or part["run"]["collisions"] < 5
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert on_disk["participants"][0]["participant"] == "P1"
+    for pid in ("P1", "P2"):
+        assert (out / pid / "timegap.png").stat().st_size > 10_000
+        header = (out / pid / "timegap.csv").read_text().splitlines()[0]
+        assert header == "t_s,phase,system,time_gap_true_s,time_gap_displayed_s,warning"
+    assert "Across participants" in (out / "summary.md").read_text()
+
+
+def test_time_gap_trace_matches_the_golden_one(short_experiment):
+    """Fails when the simulation drifts: regenerate deliberately with COSIM_UPDATE_GOLDEN=1."""
+    out, _ = short_experiment
+    produced = out / "P1" / "timegap.csv"
+    if os.environ.get("COSIM_UPDATE_GOLDEN") or not GOLDEN.exists():
+        shutil.copy(produced, GOLDEN)
+        pytest.skip(f"golden trace written to {GOLDEN}")
+    result = compare_files(GOLDEN, produced)
+    assert result.ok, result.table()
+    # the MCAP of the same run gives the same trace as its CSV
+    assert compare_files(produced, out / "P1" / "run.mcap").ok
+
+
+def test_compare_detects_a_drifted_trace(short_experiment, tmp_path):
+    out, _ = short_experiment
+    lines = (out / "P1" / "timegap.csv").read_text().splitlines()
+    drifted = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        if cells[3]:
+            cells[3] = f"{float(cells[3]) * 1.2:.4f}"
+        drifted.append(",".join(cells))
+    bad = tmp_path / "drifted.csv"
+    bad.write_text("\n".join(drifted) + "\n")
+    assert not compare_files(out / "P1" / "timegap.csv", bad).ok
+
+
+def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
+    """With no shadowing, the time gap system B shows from CAMs matches SUMO's SSM TGAP for the same pair:
+    median error < 0.1 s, 90 % within 0.3 s (the rest: CAM age before a sudden speed change)."""
+    cfg = load_run_config(ROOT / "configs" / "default.yaml", **{
+        "duration_s": 90, "scenario.demand.density": "low", "ego.physics": "sumo", "adas.system": "B",
+        "vanet.channel.shadowing": "none"})  # fmt: skip
+    ssm = tmp_path / "ssm.xml"
+    args = ("--device.ssm.explicit", "ego", "--device.ssm.measures", "TGAP", "--device.ssm.file", str(ssm),
+            "--device.ssm.trajectories", "true", "--device.ssm.range", "100")  # fmt: skip
+    with Simulation(cfg, out_dir=tmp_path, sumo_args=args) as sim:
+        sim.run()
+    g = ET.parse(ssm).getroot().find("globalMeasures")
+    ts = np.array(g.find("timeSpan").get("values").split(), float)
+    tgap = np.array([np.nan if v == "NA" else float(v) for v in g.find("TGAPSpan").get("values").split()])
+    a = read(tmp_path / "run.mcap", topics=["/adas/state"])["/adas/state"]
+    shown = a["b_gap_s"].astype(float)
+    sumo = np.interp(a["t_s"], ts, tgap, left=np.nan, right=np.nan)
+    both = np.isfinite(shown) & np.isfinite(sumo) & (shown < 9.9) & (sumo < 9.9) & (a["b_leader_id"] == a["leader_id"])
+    assert both.sum() > 200
+    err = np.abs(shown[both] - sumo[both])
+    assert np.median(err) < 0.1 and np.percentile(err, 90) < 0.3, (np.median(err), np.percentile(err, 90))
+
+
+def test_lost_cams_make_system_b_show_no_data(tmp_path):
+    """The channel cut (10 nW: every link is below sensitivity beyond ~1 m): B never shows a gap, only "no data"."""
+    cfg = load_run_config(ROOT / "configs" / "default.yaml", **{
+        "duration_s": 40, "scenario.demand.density": "low", "ego.physics": "sumo", "adas.system": "B",
+        "vanet.channel.tx_power_mw": 1e-5})  # fmt: skip
+    with Simulation(cfg, out_dir=tmp_path) as sim:
+        sim.run()
+    a = read(tmp_path / "run.mcap", topics=["/adas/state"])["/adas/state"]
+    assert np.isfinite(a["time_gap_true_s"].astype(float)).any()  # there was someone to follow
+    assert not np.isfinite(a["b_gap_s"].astype(float)).any()
+    assert set(a["b_status"]) <= {"no_cam", "stale"}
