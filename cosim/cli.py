@@ -151,6 +151,10 @@ def build_parser() -> argparse.ArgumentParser:
     vr.add_argument("--out", help="directory for the plots (default: beside the log, vanet/)")
     vr.set_defaults(fn=_vanet_report)
 
+    from cosim.sweep.cli import add_sweep_parser
+
+    add_sweep_parser(sub)
+
     lg = sub.add_parser("log", help="inspect a run's MCAP log")
     lsub = lg.add_subparsers(dest="log_command", required=True)
     li = lsub.add_parser("info", help="topics, counts and duration")

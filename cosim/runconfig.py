@@ -90,8 +90,8 @@ class RunConfig:
     timing: TimingConfig = field(default_factory=TimingConfig)
     ego: EgoConfig = field(default_factory=EgoConfig)
     # every vehicle a VANET station; null turns the radio off. /vanet/rx logs the ego's receptions only
-    # by default (all receptions of 1000 stations are ~10^6 rows per simulated second)
-    vanet: VanetParams | None = field(default_factory=lambda: VanetParams(rx_log="ego"))
+    # by default (rx_log: all for network-wide PDR studies: ~10^6 rows per simulated second at 1000)
+    vanet: VanetParams | None = field(default_factory=VanetParams)
     adas: AdasConfig = field(default_factory=AdasConfig)
     log: LogConfig = field(default_factory=LogConfig)
 

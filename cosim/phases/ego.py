@@ -177,6 +177,7 @@ class EgoController:
         self.started = False
         self.percept: Percept | None = None
         self._passed_signs: set[int] = set()
+        self._last_tls = None
         sim.add_hook("sumo", self.own_state)
         sim.add_hook("driver", self.drive)
         sim.add_hook("ego", self.integrate)
@@ -211,6 +212,7 @@ class EgoController:
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
         tls = sim.bridge.next_tls(EGO_ID)
+        self._check_red_light(sim, tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
         for i, line in enumerate(self.path.stop_lines):
@@ -232,6 +234,15 @@ class EgoController:
             route_end_dist_m=max(0.0, self.path.length_m - s_front), **kw, **adas,
         )  # fmt: skip
         self.controls = self.driver.act(self.percept, sim.step_s)
+
+    def _check_red_light(self, sim, tls) -> None:
+        """The ego crossed a stop line at red: the light it was about to reach is gone while it was red."""
+        last = self._last_tls
+        self._last_tls = tls
+        if last and last[2] < 5.0 and _TLS.get(last[3]) == "r" and (not tls or tls[:2] != last[:2]):
+            from cosim.sumo_bridge.bridge import SumoEvent
+
+            sim.events.append(SumoEvent("red_light_violation", EGO_ID, f"{last[0]} link {last[1]}", last[2]))
 
     def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
         """The nearest vehicle whose rear is on the ego's own path ahead: what a driver sees in front of

@@ -8,6 +8,7 @@ see bench/bench_core.py).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,8 @@ from cosim.world import World
 
 EGO_ID = "ego"
 LEAD_ID = "lead"
+OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
+MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
 
 
 def _backend(use_traci: bool):
@@ -61,6 +64,8 @@ class SumoBridge:
         self._lane_codes: dict[str, tuple[int, int]] = {}
         self.ego_id: str | None = None
         self.ego_on_road = True
+        self._unmapped_steps = 0
+        self._pose_off_road = False
 
     def close(self) -> None:
         if self.open:
@@ -88,7 +93,10 @@ class SumoBridge:
         self._read(world)
         ego = world.slot_of.get(self.ego_id) if self.ego_id else None
         if ego is not None:  # keepRoute=2 places an ego that left the road off-lane (empty lane id)
-            on_road = world.edge_code[ego] >= 0
+            mapped = world.edge_code[ego] >= 0 and not self._pose_off_road
+            self._unmapped_steps = 0 if mapped else self._unmapped_steps + 1
+            # a single unmapped step happens where lanes meet at a junction; off-road means staying off
+            on_road = self._unmapped_steps < OFF_ROAD_STEPS
             if on_road != self.ego_on_road:
                 self.ego_on_road = on_road
                 events.append(SumoEvent("ego_on_road" if on_road else "ego_off_road", self.ego_id))
@@ -166,9 +174,17 @@ class SumoBridge:
         keepRoute=2 lets SUMO map the pose onto any lane (the driver may leave the route); a pose farther
         than ``matchThreshold`` from every lane puts the ego off-road, which ``step`` reports as an event.
         """
-        veh = self.sumo.vehicle
+        veh, sim = self.sumo.vehicle, self.sumo.simulation
         try:
-            veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=2, matchThreshold=5.0)
+            # far from every lane: keep the SUMO twin where it last was on the road (SUMO is not meant to
+            # carry a vehicle off the network for long) and let step() report the ego as off-road
+            edge, pos, lane = sim.convertRoad(x_m, y_m, False, "passenger")
+            rx, ry = sim.convert2D(edge, pos, lane)
+            self._pose_off_road = math.hypot(rx - x_m, ry - y_m) > MATCH_THRESHOLD_M
+            if self._pose_off_road:
+                return None
+            veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=2,
+                         matchThreshold=MATCH_THRESHOLD_M)  # fmt: skip
             veh.setPreviousSpeed(EGO_ID, max(0.0, speed_mps))
         except Exception as exc:  # libsumo.TraCIException: the pose could not be used at all
             return SumoEvent("ego_write_failed", EGO_ID, str(exc).splitlines()[0][:200])

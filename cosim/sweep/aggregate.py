@@ -157,7 +157,9 @@ def metrics_from_topics(topics: dict[str, dict[str, np.ndarray]], counts: dict[s
     for kind, col in EVENT_KINDS.items():
         out[col] = int(np.count_nonzero(kinds == kind)) if has_log else None
     ego = topics.get("/ego/state")
-    out["ego_speed_mean_mps"] = _f(np.nanmean(ego["speed_mps"])) if ego and len(ego.get("speed_mps", ())) else None
+    out["ego_speed_mean_mps"] = (
+        _f(np.nanmean(ego["speed_mps"])) if ego and len(ego.get("speed_mps", ())) else None
+    )
     out.update(timegap_metrics(_timegap_trace(topics, run_dir)))
     return out
 
@@ -192,11 +194,15 @@ def _cell(value: Any) -> str:
 
 def table_columns(results: list[dict], swept: Sequence[str], pdr_bands_m: Sequence[float]) -> list[str]:
     fixed = metric_columns(pdr_bands_m)
-    extra = sorted({k for r in results for k in r.get("metrics", {}) if k not in fixed and k != "log_truncated"})
+    extra = sorted(
+        {k for r in results for k in r.get("metrics", {}) if k not in fixed and k != "log_truncated"}
+    )
     return ["run_id", "status", *swept, "seed", *fixed, *extra, "wall_s", "error"]
 
 
-def table_rows(results: list[dict], swept: Sequence[str], pdr_bands_m: Sequence[float]) -> tuple[list[str], list[dict]]:
+def table_rows(
+    results: list[dict], swept: Sequence[str], pdr_bands_m: Sequence[float]
+) -> tuple[list[str], list[dict]]:
     """Columns and one row per run (values as Python objects; missing = None)."""
     cols = table_columns(results, swept, pdr_bands_m)
     rows = []

@@ -114,7 +114,9 @@ def _import_ray():
     try:
         import ray
     except ImportError:
-        raise CosimError("the Ray backend needs Ray: pip install 'cosim[ray]' (or use --backend local)") from None
+        raise CosimError(
+            "the Ray backend needs Ray: pip install 'cosim[ray]' (or use --backend local)"
+        ) from None
     return ray
 
 
@@ -159,8 +161,9 @@ class RayBackend:
 
     def _task(self, fn: Callable):
         if fn not in self._remote:
-            # a killed worker is retried once by Ray itself; a second loss is reported as WorkerLost
-            self._remote[fn] = self.ray.remote(num_cpus=1, max_retries=1)(fn)
+            # no retries by Ray itself: a lost worker is reported as WorkerLost and the runner retries the run
+            # once, as with the local pool
+            self._remote[fn] = self.ray.remote(num_cpus=1, max_retries=0)(fn)
         return self._remote[fn]
 
     def map_unordered(self, fn: Callable, items: Iterable) -> Iterator[tuple[Any, Any]]:
@@ -170,7 +173,9 @@ class RayBackend:
         task = self._task(fn)
         queue = list(items)
         queue.reverse()
-        window = self.jobs if (self.jobs and self.address) else len(queue)  # a local instance has num_cpus=jobs
+        window = (
+            self.jobs if (self.jobs and self.address) else len(queue)
+        )  # a local instance has num_cpus=jobs
         refs: dict[Any, Any] = {}
         try:
             while queue or refs:
@@ -186,7 +191,10 @@ class RayBackend:
                         cause = exc.as_instanceof_cause()
                         yield item, getattr(exc, "cause", None) or cause
                     except Exception as exc:  # noqa: BLE001 - WorkerCrashedError, node lost, object lost ...
-                        yield item, WorkerLost(f"Ray worker lost: {type(exc).__name__}: {str(exc).splitlines()[0]}")
+                        yield (
+                            item,
+                            WorkerLost(f"Ray worker lost: {type(exc).__name__}: {str(exc).splitlines()[0]}"),
+                        )
         finally:
             for ref in refs:
                 ray.cancel(ref, force=True)

@@ -21,7 +21,9 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
                                      "default: start a local Ray instance")  # fmt: skip
     p.add_argument("--jobs", type=int, help="runs at a time (default: min(cores, runs to do))")
     p.add_argument("--out", help="results folder (default: results/<sweep name>)")
-    p.add_argument("--dry-run", action="store_true", help="list the runs and whether they are done; run nothing")
+    p.add_argument(
+        "--dry-run", action="store_true", help="list the runs and whether they are done; run nothing"
+    )
     p.set_defaults(fn=main_sweep)
     return p
 
@@ -29,22 +31,36 @@ def add_sweep_parser(subparsers) -> argparse.ArgumentParser:
 def main_sweep(args) -> int:
     from pathlib import Path
 
+    from cosim.errors import CosimError
     from cosim.sweep.backends import make_backend
     from cosim.sweep.runner import plan, run_sweep
     from cosim.sweep.spec import load_sweep
 
+    if args.address and args.backend != "ray":
+        raise CosimError("--address joins a Ray cluster: use it with --backend ray")
+    if args.jobs is not None and args.jobs < 1:
+        raise CosimError(f"--jobs must be >= 1, got {args.jobs}")
     sweep = load_sweep(args.sweep)
     out = Path(args.out) if args.out else Path("results") / sweep.spec.name
     if args.dry_run:
         planned = plan(sweep, out)
         for p in planned:
-            what = {"done": "done", "todo": "to run", "redo": "to redo (config changed)", "failed": "bad config"}[p.state]
+            what = {
+                "done": "done",
+                "todo": "to run",
+                "redo": "to redo (config changed)",
+                "failed": "bad config",
+            }[p.state]
             err = f": {p.result['error']}" if p.state == "failed" else ""
             print(f"{p.run.run_id}  {what:<24} {p.run.label()}{err}")
         print(f"{len(planned)} runs, {sum(p.state == 'done' for p in planned)} done -> {out}")
         return 0
     todo = sum(p.state in ("todo", "redo") for p in plan(sweep, out))
-    backend = make_backend(args.backend, jobs=args.jobs, n_runs=max(1, todo), address=args.address) if todo else None
+    backend = (
+        make_backend(args.backend, jobs=args.jobs, n_runs=max(1, todo), address=args.address)
+        if todo
+        else None
+    )
 
     def say(line: str) -> None:
         print(line, flush=True)

@@ -201,55 +201,6 @@ def _resolve_overrides(sweep: Sweep, run: RunSpec) -> dict[str, Any]:
     return values
 
 
-def _raw_data(base: Path | None, overrides: dict[str, Any]) -> dict:
-    """The mapping load_run_config validates: the base file with the dotted overrides applied."""
-    from cosim.config import read_yaml
-
-    data = read_yaml(base) if base else {}
-    for key, value in overrides.items():
-        *parents, leaf = key.split(".")
-        node = data
-        for p in parents:
-            node = node.setdefault(p, {}) if isinstance(node, dict) else {}
-        if isinstance(node, dict):
-            node[leaf] = value
-    return data
-
-
-def _precise(exc, data: dict):
-    """The config loader reports any bad key or value inside an optional section (``vanet: VanetParams |
-    None``) as "expected a mapping | null, got {...the whole section...}"; check that section alone to
-    name the key that is wrong."""
-    import typing
-    from typing import get_args, get_type_hints
-
-    from cosim.config import from_dict
-    from cosim.errors import ConfigError
-    from cosim.runconfig import RunConfig
-
-    for _ in range(8):  # one level of optional section per round
-        if not (exc.path and exc.problem.startswith("expected a mapping | null")):
-            return exc
-        tp: Any = RunConfig
-        value: Any = data
-        try:
-            for part in exc.path.split("."):
-                tp = get_type_hints(tp)[part]
-                value = value[part]
-                inner = [a for a in get_args(tp) if a is not type(None)]
-                if typing.get_origin(tp) is not None and len(inner) == 1:
-                    tp = inner[0]
-            from_dict(tp, value, exc.path)
-            return exc
-        except ConfigError as deeper:
-            if deeper.path == exc.path and deeper.problem == exc.problem:
-                return exc
-            exc = deeper
-        except (KeyError, TypeError, AttributeError):
-            return exc
-    return exc
-
-
 def load_config(base: Path | None, overrides: dict[str, Any]):
     """The resolved RunConfig of one run. Like ``load_run_config`` (map paths resolved the same way), but a
     null override is applied too (``vanet: null`` turns the radio off) instead of meaning "not given"."""
@@ -257,11 +208,7 @@ def load_config(base: Path | None, overrides: dict[str, Any]):
     from cosim.errors import ConfigError
     from cosim.runconfig import RunConfig, load_run_config
 
-    given = {k: v for k, v in overrides.items() if v is not None}
-    try:
-        config = load_run_config(base, **given)
-    except ConfigError as exc:
-        raise _precise(exc, _raw_data(base, given)) from None
+    config = load_run_config(base, **{k: v for k, v in overrides.items() if v is not None})
     nulls = [k for k, v in overrides.items() if v is None]
     if not nulls:
         return config
@@ -278,10 +225,7 @@ def load_config(base: Path | None, overrides: dict[str, Any]):
                 raise ConfigError(key, "cannot override inside a non-mapping value")
         if node is not None:
             node[leaf] = None
-    try:
-        return from_dict(RunConfig, data)
-    except ConfigError as exc:
-        raise _precise(exc, data) from None
+    return from_dict(RunConfig, data)
 
 
 def plan(sweep: Sweep, out_dir: Path) -> list[PlannedRun]:
@@ -368,7 +312,9 @@ def _prebuild(planned: list[PlannedRun], backend, say: Callable[[str], None]) ->
     return errors
 
 
-def _execute(tasks: list[RunTask], backend, on_result: Callable[[dict], None], say: Callable[[str], None]) -> None:
+def _execute(
+    tasks: list[RunTask], backend, on_result: Callable[[dict], None], say: Callable[[str], None]
+) -> None:
     """Run the tasks; a run whose worker died is retried once, then recorded as failed."""
     attempts: Counter[str] = Counter()
     pending = tasks
@@ -409,6 +355,8 @@ def _execute(tasks: list[RunTask], backend, on_result: Callable[[dict], None], s
                 _record(task, res)
                 on_result(res)
             lost = []
+        for task in lost:  # so that an existing folder means "started" again in the next round
+            shutil.rmtree(task.run_dir, ignore_errors=True)
         pending = lost
 
 

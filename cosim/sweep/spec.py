@@ -76,7 +76,9 @@ class SweepSpec:
 
     def __post_init__(self) -> None:
         if not _NAME.match(self.name):
-            raise ValueError(f"name {self.name!r} must be a plain folder name (letters, digits, '_', '-', '.')")
+            raise ValueError(
+                f"name {self.name!r} must be a plain folder name (letters, digits, '_', '-', '.')"
+            )
         for key, values in self.grid.items():
             _check_key(key, "grid")
             if len(values) == 0:
@@ -145,7 +147,9 @@ def _short(value: Any) -> str:
 def expand(spec: SweepSpec) -> list[RunSpec]:
     """All runs of the sweep, in a stable order (grid order, then runs, then seeds)."""
     keys = list(spec.grid)
-    combos = [dict(zip(keys, values, strict=True)) for values in itertools.product(*spec.grid.values())] or [{}]
+    combos = [dict(zip(keys, values, strict=True)) for values in itertools.product(*spec.grid.values())] or [
+        {}
+    ]
     entries = list(spec.runs) or [{}]
     seeds: list[int | None] = list(spec.seeds) or [None]
     out: list[RunSpec] = []

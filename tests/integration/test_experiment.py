@@ -75,6 +75,7 @@ def test_compare_detects_a_drifted_trace(short_experiment, tmp_path):
     assert not compare_files(out / "P1" / "timegap.csv", bad).ok
 
 
+@pytest.mark.own_process
 def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     """With no shadowing, the time gap system B shows from CAMs matches SUMO's SSM TGAP for the same pair:
     median error < 0.1 s, 90 % within 0.3 s (the rest: CAM age before a sudden speed change)."""
@@ -98,6 +99,7 @@ def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     assert np.median(err) < 0.1 and np.percentile(err, 90) < 0.3, (np.median(err), np.percentile(err, 90))
 
 
+@pytest.mark.own_process
 def test_lost_cams_make_system_b_show_no_data(tmp_path):
     """The channel cut (10 nW: every link is below sensitivity beyond ~1 m): B never shows a gap, only "no data"."""
     cfg = load_run_config(ROOT / "configs" / "default.yaml", **{

@@ -12,8 +12,14 @@ from cosim.scenario.behaviour import ScvBehaviour
 from cosim.sumo_bridge.tools import binary
 
 
+# libsumo runs one simulation per process: each test gets its own (forked) process
+pytestmark = pytest.mark.own_process
+
+
 def scenario(sketch: OsmSketch, tmp_path):
-    return build_scenario(sketch.write(tmp_path / "map.osm"), tmp_path / "scn", density="low", seed=3, log=lambda *a: None)
+    return build_scenario(
+        sketch.write(tmp_path / "map.osm"), tmp_path / "scn", density="low", seed=3, log=lambda *a: None
+    )
 
 
 def start(scn, tmp_path, vehicles: str):
@@ -48,7 +54,11 @@ def test_scv_halts_at_stop_sign_then_goes(tmp_path, sumo_closed):
     sk = crossroads(centre_tags={"highway": "stop"})
     scn = scenario(sk, tmp_path)
     e_in, e_out = edges_between(scn.net_file, sk, "s", "c"), edges_between(scn.net_file, sk, "c", "n")
-    start(scn, tmp_path, f'<vehicle id="v" type="scv" depart="0" departSpeed="max"><route edges="{e_in} {e_out}"/></vehicle>')
+    start(
+        scn,
+        tmp_path,
+        f'<vehicle id="v" type="scv" depart="0" departSpeed="max"><route edges="{e_in} {e_out}"/></vehicle>',
+    )
     speeds_near_line = []
     passed = False
     for _ in range(600):
@@ -56,7 +66,9 @@ def test_scv_halts_at_stop_sign_then_goes(tmp_path, sumo_closed):
         if "v" not in libsumo.vehicle.getIDList():
             break
         if libsumo.vehicle.getRoadID("v") == e_in:
-            to_line = libsumo.lane.getLength(libsumo.vehicle.getLaneID("v")) - libsumo.vehicle.getLanePosition("v")
+            to_line = libsumo.lane.getLength(
+                libsumo.vehicle.getLaneID("v")
+            ) - libsumo.vehicle.getLanePosition("v")
             if to_line < 3.0:
                 speeds_near_line.append(libsumo.vehicle.getSpeed("v"))
         elif libsumo.vehicle.getRoadID("v") == e_out:
@@ -70,7 +82,11 @@ def test_scv_stops_6m_before_the_junction_at_red(tmp_path, sumo_closed):
     scn = scenario(sk, tmp_path)
     e_in = edges_between(scn.net_file, sk, "w", "c")
     e_out = edges_between(scn.net_file, sk, "c", "e")
-    start(scn, tmp_path, f'<vehicle id="v" type="scv" depart="0" departSpeed="max"><route edges="{e_in} {e_out}"/></vehicle>')
+    start(
+        scn,
+        tmp_path,
+        f'<vehicle id="v" type="scv" depart="0" departSpeed="max"><route edges="{e_in} {e_out}"/></vehicle>',
+    )
     (tls,) = libsumo.trafficlight.getIDList()
     n = len(libsumo.trafficlight.getRedYellowGreenState(tls))
     libsumo.trafficlight.setRedYellowGreenState(tls, "r" * n)

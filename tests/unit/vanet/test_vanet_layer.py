@@ -41,21 +41,21 @@ def run(params, steps=40, seed=5, world_seed=0, buildings=CITY):
 
 
 def test_same_seed_same_results_and_seed_matters():
-    for params in (VanetParams(), VanetParams(channel=ChannelParams(shadowing="veins", interference="sinr"))):
+    for params in (VanetParams(rx_log="all"), VanetParams(channel=ChannelParams(shadowing="veins", interference="sinr"), rx_log="all")):
         _, a = run(params)
         _, b = run(params)
         for ra, rb in zip(a, b, strict=True):
             for topic, cols in ra.columns().items():
                 for name, arr in cols.items():
                     assert np.array_equal(arr, rb.columns()[topic][name], equal_nan=True), (topic, name)
-    _, c = run(VanetParams(), seed=6)
+    _, c = run(VanetParams(rx_log="all"), seed=6)
     slots_a = np.concatenate([r.tx["slot"] for r in a])
     slots_c = np.concatenate([r.tx["slot"] for r in c])
     assert not np.array_equal(slots_a, slots_c)
 
 
 def test_log_columns_have_the_documented_names_dtypes_and_lengths():
-    _, res = run(VanetParams(), steps=25)
+    _, res = run(VanetParams(rx_log="all"), steps=25)
     specs = {
         "/vanet/tx": TX_COLUMNS,
         "/vanet/rx": RX_COLUMNS,
@@ -78,7 +78,7 @@ def test_log_columns_have_the_documented_names_dtypes_and_lengths():
 
 
 def test_channel_load_rows_account_for_every_transmission():
-    _, res = run(VanetParams(), steps=30)
+    _, res = run(VanetParams(rx_log="all"), steps=30)
     load = {k: np.concatenate([r.load[k] for r in res]) for k in LOAD_COLUMNS}
     tx_frames = np.concatenate([r.tx["frame"] for r in res])
     assert load["frame"].tolist() == [0, 1, 2]
@@ -88,7 +88,7 @@ def test_channel_load_rows_account_for_every_transmission():
 
 
 def test_station_leaving_and_a_new_vehicle_in_the_same_slot():
-    params = VanetParams(channel=ChannelParams(shadowing="none"))
+    params = VanetParams(channel=ChannelParams(shadowing="none"), rx_log="all")
     w = make_world([[0, 0], [50, 0], [100, 0]], heading_deg=90.0, speed_mps=0.0)
     layer = VanetLayer(params, [], np.random.default_rng(0))
     res = []
@@ -110,7 +110,7 @@ def test_station_leaving_and_a_new_vehicle_in_the_same_slot():
 
 
 def test_deliveries_visible_to_the_obu_from_the_next_step():
-    params = VanetParams(channel=ChannelParams(shadowing="none"))
+    params = VanetParams(channel=ChannelParams(shadowing="none"), rx_log="all")
     w = make_world([[0, 0], [0, 30]], heading_deg=0.0, ego=0)
     layer = VanetLayer(params, [], np.random.default_rng(1))
     for k in range(40):
@@ -126,7 +126,7 @@ def test_deliveries_visible_to_the_obu_from_the_next_step():
 
 
 def test_ego_view_finds_the_leader_and_its_latest_cam():
-    params = VanetParams(channel=ChannelParams(shadowing="none"))
+    params = VanetParams(channel=ChannelParams(shadowing="none"), rx_log="all")
     w = make_world([[0, 0], [0, 16], [4, 30]], heading_deg=0.0, speed_mps=10.0, ego=0)
     w.lane_index[2] = 1  # the third car is in the next lane
     layer = VanetLayer(params, [], np.random.default_rng(2))
@@ -160,7 +160,7 @@ def test_rx_log_modes(mode):
 
 
 def test_world_capacity_growth_mid_run():
-    params = VanetParams(channel=ChannelParams(shadowing="none"))
+    params = VanetParams(channel=ChannelParams(shadowing="none"), rx_log="all")
     w = make_world([[i * 10.0, 0] for i in range(4)], capacity=4)
     layer = VanetLayer(params, [], np.random.default_rng(0))
     for k in range(25):

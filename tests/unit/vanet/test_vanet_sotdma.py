@@ -157,7 +157,7 @@ def test_rate_change_adds_and_drops_reservations():
 
 def _run_hidden_terminal(seed):
     """A at 0 m, B at 400 m, C at 800 m: A and C cannot hear each other (free space range 510 m)."""
-    params = VanetParams(channel=ChannelParams(shadowing="none"))
+    params = VanetParams(channel=ChannelParams(shadowing="none"), rx_log="all")
     w = make_world([[0, 0], [400, 0], [800, 0]], heading_deg=90.0)
     layer = VanetLayer(params, [], np.random.default_rng(seed))
     k = 0
