@@ -26,7 +26,9 @@ def _scenario(n: int, seed: int = 1):
     from cosim.scenario import ScenarioConfig, build_scenario
     from cosim.scenario.demand import DemandParams
 
-    cfg = ScenarioConfig(map=str(HELSINKI), demand=DemandParams(vehicles_per_lane_km=n / LANE_KM, horizon_s=3600))
+    cfg = ScenarioConfig(
+        map=str(HELSINKI), demand=DemandParams(vehicles_per_lane_km=n / LANE_KM, horizon_s=3600)
+    )
     return build_scenario(HELSINKI, config=cfg, seed=seed, log=lambda *a: None)
 
 
@@ -40,7 +42,17 @@ def bare(n: int, seconds: float, q) -> None:
     from cosim.sumo_bridge.tools import binary
 
     scn = _scenario(n)
-    libsumo.start([binary("sumo"), "-c", str(scn.sumocfg), "--no-warnings", "true", "--additional-files", str(scn.signs_file)])
+    libsumo.start(
+        [
+            binary("sumo"),
+            "-c",
+            str(scn.sumocfg),
+            "--no-warnings",
+            "true",
+            "--additional-files",
+            str(scn.signs_file),
+        ]
+    )
     for _ in range(_warm_steps(30)):
         libsumo.simulationStep()
     t0, c0 = time.perf_counter(), time.process_time()
@@ -48,7 +60,13 @@ def bare(n: int, seconds: float, q) -> None:
     for _ in range(_warm_steps(seconds)):
         libsumo.simulationStep()
         counts.append(libsumo.vehicle.getIDCount())
-    q.put({"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "vehicles": sum(counts) / len(counts)})
+    q.put(
+        {
+            "wall_s": time.perf_counter() - t0,
+            "cpu_s": time.process_time() - c0,
+            "vehicles": sum(counts) / len(counts),
+        }
+    )
     libsumo.close()
 
 
@@ -78,7 +96,11 @@ def core(n: int, seconds: float, q, traci: bool = False, vanet: bool = False, mu
             sim.step()
         t0, c0 = time.perf_counter(), time.process_time()
         sim.run(seconds)
-        res = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "vehicles": sim.world.n_valid}
+        res = {
+            "wall_s": time.perf_counter() - t0,
+            "cpu_s": time.process_time() - c0,
+            "vehicles": sim.world.n_valid,
+        }
     q.put(res)
 
 
@@ -90,7 +112,17 @@ def readers(n: int, seconds: float, q) -> None:
     from cosim.sumo_bridge.tools import binary
 
     scn = _scenario(n)
-    libsumo.start([binary("sumo"), "-c", str(scn.sumocfg), "--no-warnings", "true", "--additional-files", str(scn.signs_file)])
+    libsumo.start(
+        [
+            binary("sumo"),
+            "-c",
+            str(scn.sumocfg),
+            "--no-warnings",
+            "true",
+            "--additional-files",
+            str(scn.signs_file),
+        ]
+    )
     for _ in range(_warm_steps(30)):
         libsumo.simulationStep()
     veh = libsumo.vehicle
@@ -164,7 +196,11 @@ def main() -> None:
         c = _in_process(core, n, args.seconds)
         f = _in_process(core, n, args.seconds, False, True)
         m = _in_process(core, n, args.seconds, False, True, True) if n == 500 else None
-        t = _in_process(core, n, args.seconds, True) if n <= 500 or os.environ.get("BENCH_TRACI_ALL") else None
+        t = (
+            _in_process(core, n, args.seconds, True)
+            if n <= 500 or os.environ.get("BENCH_TRACI_ALL")
+            else None
+        )
         r = _in_process(readers, n, args.seconds)
         per = 1000 / args.seconds
         rows.append({"target": n, "vehicles": round(b["vehicles"]), "bare_ms_per_sim_s": per * b["wall_s"],
@@ -175,8 +211,10 @@ def main() -> None:
     if args.json:
         print(json.dumps(rows))
         return
-    print("| vehicles | bare SUMO [ms/sim s] | core [ms/sim s] (/ bare) | core + VANET (/ bare) | + MuJoCo ego (/ full) "
-          "| core over TraCI [ms/sim s] (TraCI / libsumo) | read: getters / subscriptions / context [ms/step] |")
+    print(
+        "| vehicles | bare SUMO [ms/sim s] | core [ms/sim s] (/ bare) | core + VANET (/ bare) | + MuJoCo ego (/ full) "
+        "| core over TraCI [ms/sim s] (TraCI / libsumo) | read: getters / subscriptions / context [ms/step] |"
+    )
     print("|---|---|---|---|---|---|---|")
     for r in rows:
         b = r["bare_ms_per_sim_s"]
@@ -187,8 +225,10 @@ def main() -> None:
         print(f"| {r['vehicles']} | {b:.0f} | {r['core_ms_per_sim_s']:.0f} ({r['core_ms_per_sim_s'] / b:.2f}) | "
               f"{r['full_ms_per_sim_s']:.0f} ({r['full_ms_per_sim_s'] / b:.2f}) | {mj} | {tr} | "
               f"{r['getters_ms']:.2f} / {r['subscriptions_ms']:.2f} / {r['context_ms']:.2f} |")  # fmt: skip
-    print("\nms/sim s = wall milliseconds per simulated second (1000 = real time). core: snapshot read + ego as a "
-          "SUMO car + MCAP log; full: + every vehicle a VANET station (CAMs, SOTDMA, LOS shadowing).")
+    print(
+        "\nms/sim s = wall milliseconds per simulated second (1000 = real time). core: snapshot read + ego as a "
+        "SUMO car + MCAP log; full: + every vehicle a VANET station (CAMs, SOTDMA, LOS shadowing)."
+    )
 
 
 if __name__ == "__main__":

@@ -30,9 +30,13 @@ def main() -> None:
     sim = summary["simulated_s"]
     print("| participants x phases | simulated [min] | wall [s] | faster than real time | processes |")
     print("|---|---|---|---|---|")
-    print(f"| {len(exp.participants)} x {len(exp.phases)} | {sim / 60:.0f} | {wall:.0f} | {sim / wall:.1f}x | {summary['jobs']} |")
+    print(
+        f"| {len(exp.participants)} x {len(exp.phases)} | {sim / 60:.0f} | {wall:.0f} | {sim / wall:.1f}x | {summary['jobs']} |"
+    )
     veh = [p["run"].get("steps", 0) for p in summary["participants"]]
-    print(f"\n(per participant: {', '.join(str(p['run']['wall_s']) + ' s' for p in summary['participants'])}; steps {veh})")
+    print(
+        f"\n(per participant: {', '.join(str(p['run']['wall_s']) + ' s' for p in summary['participants'])}; steps {veh})"
+    )
 
 
 if __name__ == "__main__":

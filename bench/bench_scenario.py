@@ -20,7 +20,9 @@ def main() -> None:
     os.environ["COSIM_CACHE_DIR"] = tempfile.mkdtemp(prefix="cosim-bench-cache-")
     from cosim.scenario import build_scenario
 
-    print("| map | cold build [s] | other seed: network cached + route table [s] (routes from table) | identical rebuild [s] |")
+    print(
+        "| map | cold build [s] | other seed: network cached + route table [s] (routes from table) | identical rebuild [s] |"
+    )
     print("|---|---|---|---|")
     for name in ("munich", "krems", "helsinki"):
         osm = SHARED / f"{name}.osm.gz"

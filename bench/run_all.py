@@ -18,10 +18,18 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "BENCHMARKS.md"
 BENCHES = [
     ("scenario", "Scenario build: cold vs cached (issue: scenario pipeline)", ["bench.bench_scenario"]),
-    ("core", "Core loop vs bare SUMO on Helsinki (issues: core, VANET, ego)", ["bench.bench_core", "--seconds", "60"]),
+    (
+        "core",
+        "Core loop vs bare SUMO on Helsinki (issues: core, VANET, ego)",
+        ["bench.bench_core", "--seconds", "60"],
+    ),
     ("vanet", "VANET layer alone, synthetic traffic on Helsinki roads (issue: VANET)", ["bench.bench_vanet"]),
     ("ego", "MuJoCo ego cost (issue: ego)", ["bench.bench_ego"]),
-    ("experiment", "make experiment: the paper's protocol, 4 x 15 min (issue: experiment)", ["bench.bench_experiment"]),
+    (
+        "experiment",
+        "make experiment: the paper's protocol, 4 x 15 min (issue: experiment)",
+        ["bench.bench_experiment"],
+    ),
     ("sweep", "Sweep throughput, local pool vs Ray (issue: sweeps)", ["bench.bench_sweep"]),
     ("render", "3D view frame rate (issue: 3D view)", ["bench.bench_render"]),
 ]
@@ -30,12 +38,17 @@ BENCHES = [
 def machine() -> str:
     cpu = next((ln.split(":", 1)[1].strip() for ln in Path("/proc/cpuinfo").read_text().splitlines()
                 if ln.startswith("model name")), platform.processor())  # fmt: skip
-    mem = next((ln.split()[1] for ln in Path("/proc/meminfo").read_text().splitlines() if ln.startswith("MemTotal")), "?")
+    mem = next(
+        (ln.split()[1] for ln in Path("/proc/meminfo").read_text().splitlines() if ln.startswith("MemTotal")),
+        "?",
+    )
     return f"{cpu}, {os.cpu_count()} cores, {int(mem) // 1024 // 1024} GiB, {platform.platform()}, Python {platform.python_version()}"
 
 
 def sections(text: str) -> dict[str, str]:
-    return {m.group(1): m.group(0) for m in re.finditer(r"<!-- bench:(\w+) -->.*?<!-- /bench:\1 -->", text, re.S)}
+    return {
+        m.group(1): m.group(0) for m in re.finditer(r"<!-- bench:(\w+) -->.*?<!-- /bench:\1 -->", text, re.S)
+    }
 
 
 def main() -> None:
@@ -50,15 +63,21 @@ def main() -> None:
         if not (ROOT / "bench" / f"{cmd[0].split('.')[-1]}.py").exists():
             continue
         print(f"== {key}: python -m {' '.join(cmd)}", flush=True)
-        started = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        started = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
         proc = subprocess.run([sys.executable, "-m", *cmd], cwd=ROOT, capture_output=True, text=True)
-        body = proc.stdout.strip() if proc.returncode == 0 else f"FAILED (exit {proc.returncode}):\n```\n{proc.stderr[-2000:]}\n```"
+        body = (
+            proc.stdout.strip()
+            if proc.returncode == 0
+            else f"FAILED (exit {proc.returncode}):\n```\n{proc.stderr[-2000:]}\n```"
+        )
         print(body, flush=True)
         load = os.getloadavg()[0]
         parts.append(f"<!-- bench:{key} -->\n## {title}\n\n`python -m {' '.join(cmd)}` — {started}, load average "
                      f"{load:.1f} after the run\n\n{body}\n<!-- /bench:{key} -->")  # fmt: skip
-    header = (f"# Benchmarks\n\nMachine: {machine()}.\nWritten by `make bench` (bench/run_all.py); every "
-              "number is wall time on this shared machine, ratios are measured within one run of a benchmark.\n")
+    header = (
+        f"# Benchmarks\n\nMachine: {machine()}.\nWritten by `make bench` (bench/run_all.py); every "
+        "number is wall time on this shared machine, ratios are measured within one run of a benchmark.\n"
+    )
     OUT.write_text(header + "\n" + "\n\n".join(parts) + "\n")
     print(f"wrote {OUT}")
 

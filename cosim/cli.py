@@ -13,7 +13,14 @@ from cosim.errors import CosimError
 def _build_scenario(args) -> int:
     from cosim.scenario import build_scenario
 
-    build_scenario(args.osm, args.out, density=args.density, seed=args.seed)
+    scn = build_scenario(args.osm, args.out, density=args.density, seed=args.seed)
+    if args.check:
+        from cosim.scenario.check import check_scenario
+
+        c = check_scenario(scn.dir, args.check)
+        print(f"  check: {c['duration_s']:.0f} s of traffic in SUMO: {c['departed']} departed, {c['arrived']} arrived, "
+              f"{c['mean_vehicles']:.0f} on the road on average (max {c['max_vehicles']}), {c['teleports']} teleports "
+              f"({100 * c['teleport_share']:.1f} % of departures), {c['collisions']} collisions; {c['wall_s']:.0f} s wall")  # fmt: skip
     return 0
 
 
@@ -25,7 +32,9 @@ def _run(args) -> int:
                  "seed": args.seed}  # fmt: skip
     config = load_run_config(args.config, **overrides)
     out = Path(args.out) if args.out else Path("results") / config.name
-    with Simulation(config, out_dir=out, gui=args.gui, quiet=args.quiet, log=None if not args.quiet else (lambda *a: None)) as sim:
+    with Simulation(
+        config, out_dir=out, gui=args.gui, quiet=args.quiet, log=None if not args.quiet else (lambda *a: None)
+    ) as sim:
         stats = sim.run()
     stats["log"] = str(out / "run.mcap")
     print(json.dumps(stats) if args.quiet else "\n".join(f"{k}: {v}" for k, v in stats.items()))
@@ -109,7 +118,9 @@ def _vanet_report(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from cosim.scenario.demand import DENSITY_NAMES
 
-    p = argparse.ArgumentParser(prog="cosim", description="Driving simulator with a lockstep VANET layer (SUMO + MuJoCo).")
+    p = argparse.ArgumentParser(
+        prog="cosim", description="Driving simulator with a lockstep VANET layer (SUMO + MuJoCo)."
+    )
     sub = p.add_subparsers(dest="command", required=True)
 
     b = sub.add_parser("build-scenario", help="build a SUMO scenario from an OSM file")
@@ -117,6 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--out", help="directory to write the scenario into (default: only the cache)")
     b.add_argument("--density", choices=DENSITY_NAMES, default="medium")
     b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--check", type=float, metavar="SECONDS",
+                   help="then run SECONDS of its traffic in SUMO and report teleports (added to report.json)")  # fmt: skip
     b.set_defaults(fn=_build_scenario)
 
     r = sub.add_parser("run", help="run the co-simulation headless from a config")

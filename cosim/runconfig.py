@@ -61,7 +61,9 @@ class EgoConfig:
     lead_vehicle: bool = True  # a SUMO vehicle on the same route, ahead of the ego, to follow
     lead_waits_beyond_m: float = 60.0  # the lead slows down for the ego beyond this gap (0 = never) [m]
     car: CarParams = field(default_factory=CarParams)  # the MuJoCo car (mass, tyres, power, brakes ...)
-    driver: DriverConfig = field(default_factory=DriverConfig)  # who drives: scripted profile, keyboard, wheel
+    driver: DriverConfig = field(
+        default_factory=DriverConfig
+    )  # who drives: scripted profile, keyboard, wheel
     driver_seed: int = 0  # the driver's own randomness (perception noise, wander): one per participant
 
     def __post_init__(self):
@@ -130,5 +132,7 @@ def run_config_from(data: dict, base: Path | None, **overrides) -> RunConfig:
     map_path = Path(config.scenario.map)
     if not map_path.is_absolute():
         candidates = [b / map_path for b in (base, base.parent) if b is not None] if base else []
-        map_path = next((c for c in candidates if c.exists()), candidates[0] if candidates else map_path).resolve()
+        map_path = next(
+            (c for c in candidates if c.exists()), candidates[0] if candidates else map_path
+        ).resolve()
     return dataclasses.replace(config, scenario=dataclasses.replace(config.scenario, map=str(map_path)))

@@ -20,7 +20,7 @@ from cosim.config import to_dict
 from cosim.log import McapLog
 from cosim.runconfig import RunConfig
 from cosim.scenario import Scenario, build_scenario
-from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoBridge, SumoEvent
+from cosim.sumo_bridge.bridge import LEAD_ID, SumoBridge, SumoEvent
 from cosim.sumo_bridge.tools import sumo_version
 from cosim.world import World
 
@@ -45,7 +45,9 @@ class Progress:
         rtf = t_s / wall if wall > 0 else 0.0
         frac = min(1.0, t_s / self.total_s)
         bar = "#" * int(frac * 30)
-        sys.stderr.write(f"\r[{bar:<30}] {t_s:7.1f}/{self.total_s:.0f} s  {vehicles:5d} vehicles  {rtf:6.1f}x real time")
+        sys.stderr.write(
+            f"\r[{bar:<30}] {t_s:7.1f}/{self.total_s:.0f} s  {vehicles:5d} vehicles  {rtf:6.1f}x real time"
+        )
         sys.stderr.flush()
 
     def done(self) -> None:
@@ -138,7 +140,9 @@ class Simulation:
         route = list(ego.route) or list(self.scenario.report["demand"]["ego_route"])
         self.ego_route = route
         if ego.lead_vehicle:
-            self.bridge.add_vehicle(LEAD_ID, route, depart=ego.depart_s, type_id="scv", color=(40, 120, 255, 255))
+            self.bridge.add_vehicle(
+                LEAD_ID, route, depart=ego.depart_s, type_id="scv", color=(40, 120, 255, 255)
+            )
         self.bridge.add_ego(route, depart=ego.depart_s + (3.0 if ego.lead_vehicle else 0.0),
                             controlled=ego.physics == "mujoco", length_m=ego.car.length_m,
                             width_m=ego.car.width_m)  # fmt: skip

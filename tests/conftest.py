@@ -18,7 +18,6 @@ def _cache_dir(tmp_path_factory):
     yield path
 
 
-
 def pytest_configure(config):
     config.addinivalue_line(
         "markers", "own_process: run the test in a fresh Python process (libsumo: one simulation per process)"

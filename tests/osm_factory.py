@@ -24,7 +24,9 @@ class OsmSketch:
     def way(self, names: list[str], **tags) -> str:
         self._next_way += 1
         wid = str(self._next_way)
-        self.ways.append((wid, [self.ids[n] for n in names], {k.replace("__", ":"): v for k, v in tags.items()}))
+        self.ways.append(
+            (wid, [self.ids[n] for n in names], {k.replace("__", ":"): v for k, v in tags.items()})
+        )
         return wid
 
     def write(self, path: Path) -> Path:
@@ -35,7 +37,9 @@ class OsmSketch:
             body = "".join(f'<tag k="{k}" v="{v}"/>' for k, v in tags.items())
             lines.append(f'  <node id="{nid}" version="1" lat="{lat:.8f}" lon="{lon:.8f}">{body}</node>')
         for wid, refs, tags in self.ways:
-            body = "".join(f'<nd ref="{r}"/>' for r in refs) + "".join(f'<tag k="{k}" v="{v}"/>' for k, v in tags.items())
+            body = "".join(f'<nd ref="{r}"/>' for r in refs) + "".join(
+                f'<tag k="{k}" v="{v}"/>' for k, v in tags.items()
+            )
             lines.append(f'  <way id="{wid}" version="1">{body}</way>')
         lines.append("</osm>")
         path.write_text("\n".join(lines) + "\n")

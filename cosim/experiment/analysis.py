@@ -61,7 +61,9 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
         speed = e["physics_speed_mps"][em].astype(float) if "physics_speed_mps" in e else e["speed_mps"][em]
         es = np.interp(a["t_s"][am], e["t_s"][em], speed) if em.any() else np.zeros(am.sum())
         closing = es - ls
-        ttc = np.where((closing > 0.1) & np.isfinite(gap), gap / np.where(closing > 0.1, closing, 1.0), np.inf)
+        ttc = np.where(
+            (closing > 0.1) & np.isfinite(gap), gap / np.where(closing > 0.1, closing, 1.0), np.inf
+        )
         accel = np.gradient(speed, e["t_s"][em]) if em.sum() > 2 else np.zeros(0)
         pdr = math.nan
         if rx is not None and "b_station" in a:
@@ -114,7 +116,14 @@ def plot_timegap(cols: dict[str, np.ndarray], path: Path, title: str) -> None:
         m = cols["phase"] == phase
         t0 = t[m][0]
         ax.axvline(t0, color="0.5", lw=0.8, ls="--")
-        ax.text(t0 + 3, 0.97, f"{phase} ({cols['system'][m][0]})", transform=ax.get_xaxis_transform(), va="top", fontsize=9)
+        ax.text(
+            t0 + 3,
+            0.97,
+            f"{phase} ({cols['system'][m][0]})",
+            transform=ax.get_xaxis_transform(),
+            va="top",
+            fontsize=9,
+        )
     for y in (1.0, 2.0, 3.0):
         ax.axhline(y, color="0.8", lw=0.6, zorder=0)
     ax.set_xlim(t[0], t[-1])

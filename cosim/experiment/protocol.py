@@ -37,7 +37,9 @@ class ParticipantSpec:
 
     def __post_init__(self):
         if self.profile not in PROFILES:
-            raise ValueError(f"participant {self.id!r}: unknown profile {self.profile!r} (known: {', '.join(PROFILES)})")
+            raise ValueError(
+                f"participant {self.id!r}: unknown profile {self.profile!r} (known: {', '.join(PROFILES)})"
+            )
 
 
 @dataclass(frozen=True)
@@ -64,7 +66,9 @@ class ExperimentConfig:
             raise ValueError("participants: need at least one participant and unique ids")
         for p in self.participants:
             if p.order and sorted(p.order) != sorted(names):
-                raise ValueError(f"participant {p.id!r}: order must list each phase once ({', '.join(names)})")
+                raise ValueError(
+                    f"participant {p.id!r}: order must list each phase once ({', '.join(names)})"
+                )
 
     def order_of(self, index: int) -> tuple[PhaseSpec, ...]:
         part = self.participants[index]
@@ -87,12 +91,17 @@ def load_experiment(path: str | Path, *, map_path: str | None = None, participan
     if phase_duration_s is not None:
         if phase_duration_s <= 0:
             raise ConfigError("--phase-duration", "must be > 0")
-        exp = dataclasses.replace(exp, phases=tuple(dataclasses.replace(p, duration_s=phase_duration_s) for p in exp.phases))
+        exp = dataclasses.replace(
+            exp, phases=tuple(dataclasses.replace(p, duration_s=phase_duration_s) for p in exp.phases)
+        )
     if participants is not None:
         if participants < 1:
             raise ConfigError("--participants", "must be >= 1")
         known = list(exp.participants)
-        more = [dataclasses.replace(known[i % len(known)], id=f"P{i + 1}") for i in range(len(known), participants)]
+        more = [
+            dataclasses.replace(known[i % len(known)], id=f"P{i + 1}")
+            for i in range(len(known), participants)
+        ]
         exp = dataclasses.replace(exp, participants=tuple(known[:participants] + more))
     run = copy.deepcopy(exp.run)
     if map_path is not None:

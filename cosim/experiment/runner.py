@@ -58,7 +58,11 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
             sim.step()
             if progress is not None and k % 50 == 0:
                 progress[part.id] = k / steps
-        stats = {**sim.stats, "simulated_s": round(sim.world.t_s, 1), "wall_s": round(time.perf_counter() - t_wall, 1)}
+        stats = {
+            **sim.stats,
+            "simulated_s": round(sim.world.t_s, 1),
+            "wall_s": round(time.perf_counter() - t_wall, 1),
+        }
     if progress is not None:
         progress[part.id] = 1.0
     log = read(pdir / "run.mcap", topics=["/adas/state", "/ego/state", "/vanet/rx"])
@@ -75,13 +79,17 @@ def _worker(args):
     return run_participant(exp, index, base, out_dir, progress)
 
 
-def run_experiment(exp: ExperimentConfig, base: Path, out_dir: Path, jobs: int | None = None, quiet: bool = False) -> dict:
+def run_experiment(
+    exp: ExperimentConfig, base: Path, out_dir: Path, jobs: int | None = None, quiet: bool = False
+) -> dict:
     from cosim.scenario import build_scenario
 
     out_dir.mkdir(parents=True, exist_ok=True)
     first = participant_config(exp, 0, base)
     say = (lambda *a: None) if quiet else print
-    build_scenario(first.scenario.map, config=first.scenario, seed=first.seed, log=say)  # once, before the workers
+    build_scenario(
+        first.scenario.map, config=first.scenario, seed=first.seed, log=say
+    )  # once, before the workers
     n = len(exp.participants)
     jobs = max(1, min(jobs or os.cpu_count() or 1, n))
     t0 = time.perf_counter()

@@ -95,15 +95,18 @@ def _columns(messages: list[dict]) -> dict[str, np.ndarray]:
                 cols[k].extend([v] * n)
     out = {}
     for k, v in cols.items():
-        arr = np.asarray([np.nan if x is None else x for x in v] if _numeric(v) else v, dtype=None if _numeric(v) else object)
+        arr = np.asarray(
+            [np.nan if x is None else x for x in v] if _numeric(v) else v,
+            dtype=None if _numeric(v) else object,
+        )
         out[k] = arr
     return out
 
 
 def _numeric(values: list) -> bool:
-    return all(x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in values) and any(
-        x is not None for x in values
-    )
+    return all(
+        x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in values
+    ) and any(x is not None for x in values)
 
 
 def read(path: str | Path, topics: list[str] | None = None, keep_raw: bool = False) -> Log:

@@ -60,7 +60,9 @@ class Recorder:
         for ev in sim.events:
             log.write("/events", t, {"t_s": t, "step": step, "kind": ev.kind, "vehicle": ev.vehicle,
                                      "detail": ev.detail, "value": ev.value})  # fmt: skip
-        for topic, msg in sim.outputs.get("log", {}).items():  # other phases' records (/vanet/*, /adas/*, ...)
+        for topic, msg in sim.outputs.get(
+            "log", {}
+        ).items():  # other phases' records (/vanet/*, /adas/*, ...)
             log.write(topic, t, msg)
         scene_every = self.cfg.scene_every_steps
         if scene_every and step % scene_every == 0:
@@ -78,7 +80,11 @@ class Recorder:
         entities = []
         for i in idx:
             is_ego = bool(w.is_ego[i])
-            color = {"r": 0.9, "g": 0.1, "b": 0.1, "a": 1.0} if is_ego else {"r": 0.3, "g": 0.5, "b": 0.9, "a": 0.9}
+            color = (
+                {"r": 0.9, "g": 0.1, "b": 0.1, "a": 1.0}
+                if is_ego
+                else {"r": 0.3, "g": 0.5, "b": 0.9, "a": 0.9}
+            )
             entities.append({
                 "timestamp": stamp, "frame_id": "map", "id": w.ids[i], "lifetime": {"sec": 0, "nsec": 0},
                 "frame_locked": False, "metadata": [],

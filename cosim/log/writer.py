@@ -63,7 +63,9 @@ class McapLog:
             data = json.dumps(message, separators=(",", ":"), allow_nan=False).encode()
         except ValueError:  # a NaN/inf somewhere: the rare slow path
             data = json.dumps(_clean(message), separators=(",", ":"), allow_nan=False).encode()
-        self._writer.add_message(self.channel(topic), log_time=ns, data=data, publish_time=ns, sequence=self.count)
+        self._writer.add_message(
+            self.channel(topic), log_time=ns, data=data, publish_time=ns, sequence=self.count
+        )
         self.count += 1
         now = time.monotonic()
         if now - self._last_flush > self._flush_every_s:

@@ -16,8 +16,8 @@ from typing import Literal
 import numpy as np
 
 from cosim.adas import RearStereoWarning, V2VTimeGapWarning, VehicleState
-from cosim.adas.rear_stereo import RearWarningParams
 from cosim.adas.common import time_gap_s
+from cosim.adas.rear_stereo import RearWarningParams
 from cosim.adas.v2v_timegap import CamData, TimeGapParams
 from cosim.scenario.buildings import load_buildings
 from cosim.sumo_bridge.bridge import EGO_ID
@@ -46,7 +46,9 @@ class AdasPhase:
         self.active: System = config.system
         self.phase_name = ""
         buildings, _ = load_buildings(sim.scenario.buildings_file)
-        self.system_a = RearStereoWarning(config.rear, buildings, rng=np.random.default_rng([sim.config.seed, 31]))
+        self.system_a = RearStereoWarning(
+            config.rear, buildings, rng=np.random.default_rng([sim.config.seed, 31])
+        )
         self.system_b = V2VTimeGapWarning(config.v2v)
         self._b_station: int | None = None
         sim.add_hook("adas", self.step)

@@ -20,7 +20,9 @@ PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
 CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
-PATH_HALF_WIDTH_M = 1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
+PATH_HALF_WIDTH_M = (
+    1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
+)
 
 
 @dataclass(frozen=True)
@@ -53,7 +55,9 @@ class RoutePath:
             if conns:
                 c = conns[0]
                 node = edge.getToNode()
-                self.stop_lines.append(StopLine(_length(pts), node.getID(), c.getState(), tuple(node.getCoord()[:2])))
+                self.stop_lines.append(
+                    StopLine(_length(pts), node.getID(), c.getState(), tuple(node.getCoord()[:2]))
+                )
                 via = c.getViaLaneID()
                 if via:
                     _extend(pts, [tuple(p[:2]) for p in net.getLane(via).getShape()])
@@ -99,7 +103,13 @@ class RoutePath:
     def window(self, s_from: float, s_to: float) -> np.ndarray:
         s_from, s_to = max(0.0, s_from), min(self.length_m, s_to)
         inside = (self.s > s_from) & (self.s < s_to)
-        ends = np.stack([np.interp([s_from, s_to], self.s, self.xy[:, 0]), np.interp([s_from, s_to], self.s, self.xy[:, 1])], axis=1)
+        ends = np.stack(
+            [
+                np.interp([s_from, s_to], self.s, self.xy[:, 0]),
+                np.interp([s_from, s_to], self.s, self.xy[:, 1]),
+            ],
+            axis=1,
+        )
         out = np.vstack([ends[:1], self.xy[inside], ends[1:]])
         return out if len(out) >= 2 else np.vstack([out, out + 0.1])
 
@@ -149,7 +159,10 @@ def _trim_start(shape: list, dist: float) -> list:
         seg = math.dist(shape[i - 1], shape[i])
         if acc + seg >= dist:
             f = (dist - acc) / seg if seg else 0.0
-            p = (shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]), shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]))
+            p = (
+                shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]),
+                shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]),
+            )
             return [p, *shape[i:]]
         acc += seg
     return shape[-1:]
@@ -184,7 +197,9 @@ class EgoController:
         sim.add_hook("writeback", self.write_back)
 
     def _start(self, w, slot: int) -> None:
-        cx, cy, yaw = frames.sumo_to_mujoco(w.x_m[slot], w.y_m[slot], w.heading_deg[slot], self.car.params.length_m)
+        cx, cy, yaw = frames.sumo_to_mujoco(
+            w.x_m[slot], w.y_m[slot], w.heading_deg[slot], self.car.params.length_m
+        )
         self.origin = (float(cx), float(cy))
         self.car.reset(0.0, 0.0, float(yaw), float(w.speed_mps[slot]))
         self.started = True
@@ -256,7 +271,9 @@ class EgoController:
         rear_x = w.x_m[idx] - ux[idx] * w.length_m[idx]
         rear_y = w.y_m[idx] - uy[idx] * w.length_m[idx]
         half = PATH_HALF_WIDTH_M + 0.5 * w.width_m[idx].mean()
-        rows, s_rear = self.path.vehicles_on_path(rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half)
+        rows, s_rear = self.path.vehicles_on_path(
+            rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half
+        )
         if rows.size == 0:
             return {}
         k = int(np.argmin(s_rear))

@@ -42,7 +42,9 @@ class ScvBehaviour:
     red_light_stop_gap_m: float = 6.0  # SCVs stop this far before the junction at red [m]
     stop_sign_clear_distance_m: float = 200.0  # go only if no foe is within this distance [m]
     reference_major_speed_mps: float = 13.89  # converts the clear distance into SUMO's time gap [m/s]
-    max_minor_time_gap_s: float = 3.0  # cap: SUMO applies the gap at EVERY minor link, not only signed ones [s]
+    max_minor_time_gap_s: float = (
+        3.0  # cap: SUMO applies the gap at EVERY minor link, not only signed ones [s]
+    )
     give_way_approach_speed_kmh: float = 5.0  # [km/h]
     stop_sign_stop_gap_m: float = 1.0  # where SCVs halt before a stop sign's line [m]
     stop_sign_wait_s: float = 1.0  # minimum standstill at a stop sign (paper: >= 2 frames) [s]
@@ -69,7 +71,9 @@ class ScvBehaviour:
 
     @property
     def minor_time_gap_s(self) -> float:
-        return min(self.stop_sign_clear_distance_m / self.reference_major_speed_mps, self.max_minor_time_gap_s)
+        return min(
+            self.stop_sign_clear_distance_m / self.reference_major_speed_mps, self.max_minor_time_gap_s
+        )
 
     def vtype_distribution_xml(self, rng: np.random.Generator, dist_id: str = "scv") -> str:
         n = self.n_vtypes

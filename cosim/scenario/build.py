@@ -25,7 +25,7 @@ from cosim.scenario.routetable import RouteTable
 from cosim.scenario.signs import SIGN_KINDS, derive_signs, write_signs
 from cosim.sumo_bridge.tools import summarise_warnings, sumo_version
 
-CACHE_FORMAT = 1  # bump when the outputs of a build change for the same inputs
+CACHE_FORMAT = 2  # bump when the outputs of a build change for the same inputs
 NETWORK_FILES = ("network.net.xml", "buildings.poly.xml", "signs.add.xml", "network.json", "netconvert.log")
 SCENARIO_FILES = (*NETWORK_FILES, "routes.rou.xml", "scenario.sumocfg", "report.json")
 
@@ -69,7 +69,9 @@ def _key(*parts) -> str:
 def _network_key(osm_sha: str, behaviour: ScvBehaviour) -> str:
     option_files = sorted((p.name, _sha256(p)) for p in OPTIONS_DIR.iterdir())
     net_relevant = behaviour.give_way_approach_speed_kmh
-    return _key(CACHE_FORMAT, osm_sha, option_files, pass1_options(Path("X"), Path("Y")), net_relevant, sumo_version())
+    return _key(
+        CACHE_FORMAT, osm_sha, option_files, pass1_options(Path("X"), Path("Y")), net_relevant, sumo_version()
+    )
 
 
 def _publish(tmp: Path, final: Path) -> None:
@@ -146,6 +148,8 @@ def _sumocfg(seed: int) -> str:
     </routing>
     <processing>
         <time-to-teleport value="120"/>
+        <!-- vehicles standing in a junction for 20 s no longer block it: resolves OSM-typical deadlocks -->
+        <ignore-junction-blocker value="20"/>
         <collision.action value="warn"/>
     </processing>
     <random_number>
@@ -211,13 +215,27 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
                 table.close()
             (tmp / "scenario.sumocfg").write_text(_sumocfg(seed))
             report = {
-                "osm": {"file": osm_path.name, "sha256": osm_sha, "nodes": osm.n_nodes, "ways": osm.n_ways,
-                        "buildings_tagged": osm.n_buildings, "drivable_ways": osm.n_drivable_ways,
-                        "sign_nodes": dict(Counter(s.kind for s in osm.signs))},  # fmt: skip
+                "osm": {
+                    "file": osm_path.name,
+                    "sha256": osm_sha,
+                    "nodes": osm.n_nodes,
+                    "ways": osm.n_ways,
+                    "buildings_tagged": osm.n_buildings,
+                    "drivable_ways": osm.n_drivable_ways,
+                    "sign_nodes": dict(Counter(s.kind for s in osm.signs)),
+                },  # fmt: skip
                 **info,
-                "demand": {**dataclasses.asdict(d), "density": demand.density, "horizon_s": demand.horizon_s,
-                           "seed": seed},  # fmt: skip
-                "cache": {"network": "hit" if net_hit else "built", "scenario_key": scn_key, "network_key": net_key},
+                "demand": {
+                    **dataclasses.asdict(d),
+                    "density": demand.density,
+                    "horizon_s": demand.horizon_s,
+                    "seed": seed,
+                },  # fmt: skip
+                "cache": {
+                    "network": "hit" if net_hit else "built",
+                    "scenario_key": scn_key,
+                    "network_key": net_key,
+                },
                 "sumo_version": sumo_version(),
             }
             report["timing_s"] = {**info["timing_s"], "demand": round(time.perf_counter() - t0, 2)}

@@ -94,7 +94,10 @@ def load_buildings(path: str | Path):
             if not parts:
                 continue
             geom = max(parts, key=lambda g: g.area)
-        h = next((float(p.get("value")) for p in poly.iter("param") if p.get("key") == "height_m"), DEFAULT_HEIGHT_M)
+        h = next(
+            (float(p.get("value")) for p in poly.iter("param") if p.get("key") == "height_m"),
+            DEFAULT_HEIGHT_M,
+        )
         polys.append(geom)
         heights.append(h)
     return polys, np.asarray(heights, dtype=np.float64)

@@ -26,9 +26,16 @@ from cosim.scenario.routetable import RouteTable
 
 # vehicles per lane-km present on average. For scale: a free-flowing urban lane carries ~10-20 veh/km,
 # jam density is ~130-150; city-wide averages are far lower because side streets are nearly empty.
-DENSITY_PRESETS = {"low": 2.0, "medium": 5.0, "medium_high": 7.5, "high": 10.0}  # medium_high: the paper's VII.C
+DENSITY_PRESETS = {
+    "low": 2.0,
+    "medium": 5.0,
+    "medium_high": 7.5,
+    "high": 10.0,
+}  # medium_high: the paper's VII.C
 DENSITY_NAMES = tuple(DENSITY_PRESETS)
-MEAN_SPEED_FRACTION = 0.35  # measured on Krems: SCV trips average ~35 % of the speed limit (junctions, lights)
+MEAN_SPEED_FRACTION = (
+    0.35  # measured on Krems: SCV trips average ~35 % of the speed limit (junctions, lights)
+)
 
 
 @dataclass(frozen=True)
@@ -52,7 +59,11 @@ class DemandParams:
 
     @property
     def per_lane_km(self) -> float:
-        return self.vehicles_per_lane_km if self.vehicles_per_lane_km is not None else DENSITY_PRESETS[self.density]
+        return (
+            self.vehicles_per_lane_km
+            if self.vehicles_per_lane_km is not None
+            else DENSITY_PRESETS[self.density]
+        )
 
 
 def drivable_component(net) -> list:
@@ -142,7 +153,9 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
         comp = corridor_edges(comp, ego_route, params.corridor_m)
     origins = [e for e in comp if is_spawn_edge(e) and e.getLength() > 5.0]
     if not origins:
-        raise CosimError("the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on")
+        raise CosimError(
+            "the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on"
+        )
     lane_km = sum(e.getLength() * _lanes_for_cars(e) for e in comp) / 1000.0
     n_target = max(1, round(params.per_lane_km * lane_km))
     w_orig = np.array([e.getLength() * _lanes_for_cars(e) for e in origins])
@@ -157,7 +170,9 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
         for _ in range(20):  # redraw the few pairs whose destination is their origin
             o = rng.choice(len(orig_ids), size=n - len(pairs), p=w_orig)
             d = rng.integers(0, len(dest_ids), size=n - len(pairs))
-            pairs += [(orig_ids[i], dest_ids[j]) for i, j in zip(o, d, strict=True) if orig_ids[i] != dest_ids[j]]
+            pairs += [
+                (orig_ids[i], dest_ids[j]) for i, j in zip(o, d, strict=True) if orig_ids[i] != dest_ids[j]
+            ]
             if len(pairs) == n or len(dest_ids) < 2:
                 break
         return pairs

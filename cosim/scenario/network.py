@@ -159,7 +159,9 @@ def place_signs(net, osm: OsmInfo) -> list[SignPlacement]:
             if best is None or d < best[0]:
                 best = (d, edge.getID())
         if best is None or best[0] > 30.0:
-            placements.append(SignPlacement(sign, junction_id, (), "approach edge not found; applied to the junction"))
+            placements.append(
+                SignPlacement(sign, junction_id, (), "approach edge not found; applied to the junction")
+            )
         else:
             placements.append(SignPlacement(sign, junction_id, (best[1],)))
     return placements
@@ -198,7 +200,11 @@ def turn_lane_deletions(edge) -> list[str]:
     allowed = []
     for tok in reversed(tokens):
         arrows = [a for a in tok.split(";") if a and a != "none"]
-        allowed.append(set().union(*(_ARROW_DIRS.get(a, {"s", "l", "r", "L", "R", "t"}) for a in arrows)) if arrows else None)
+        allowed.append(
+            set().union(*(_ARROW_DIRS.get(a, {"s", "l", "r", "L", "R", "t"}) for a in arrows))
+            if arrows
+            else None
+        )
     deletions = []
     for to_edge, conns in sorted(edge.getOutgoing().items(), key=lambda kv: kv[0].getID()):
         bad = [c for c in conns if allowed[c.getFromLane().getIndex()] is not None
@@ -268,7 +274,9 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
     }
     files["nod"].write_text("<nodes>\n" + "\n".join(nodes) + "\n</nodes>\n")
     files["edg"].write_text(
-        "<edges>\n" + "\n".join(f"    <edge id={quoteattr(e)} {a}/>" for e, a in sorted(edges.items())) + "\n</edges>\n"
+        "<edges>\n"
+        + "\n".join(f"    <edge id={quoteattr(e)} {a}/>" for e, a in sorted(edges.items()))
+        + "\n</edges>\n"
     )
     files["con"].write_text("<connections>\n" + "\n".join(cons) + "\n</connections>\n")
     return files, junction_kind, signed_approaches, sorted(tls_approaches)
@@ -307,4 +315,6 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     pass1.unlink()
     for f in files.values():
         f.unlink()
-    return NetworkBuild(final, placements, junction_kind, signed, tls_approaches, [("pass1", run1), ("pass2", run2)])
+    return NetworkBuild(
+        final, placements, junction_kind, signed, tls_approaches, [("pass1", run1), ("pass2", run2)]
+    )

@@ -96,7 +96,9 @@ def read_osm(path: str | Path) -> OsmInfo:
                     if not root_seen:
                         root_seen = True
                         if elem.tag != "osm":
-                            raise CosimError(f"{path} is not an OpenStreetMap XML file (root element <{elem.tag}>, expected <osm>)")
+                            raise CosimError(
+                                f"{path} is not an OpenStreetMap XML file (root element <{elem.tag}>, expected <osm>)"
+                            )
                     continue
                 tag = elem.tag
                 if tag == "node":
@@ -137,7 +139,9 @@ def read_osm(path: str | Path) -> OsmInfo:
         raise
     except ET.ParseError as exc:
         line = exc.position[0] if getattr(exc, "position", None) else "?"
-        raise CosimError(f"{path} is not valid OSM XML (parse error at line {line}): the file is corrupt or truncated") from None
+        raise CosimError(
+            f"{path} is not valid OSM XML (parse error at line {line}): the file is corrupt or truncated"
+        ) from None
     except (EOFError, OSError, zlib.error) as exc:
         raise CosimError(f"{path} cannot be read: {exc} (truncated or corrupt .osm.gz?)") from None
     except (TypeError, ValueError):

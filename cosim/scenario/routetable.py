@@ -39,13 +39,16 @@ class RouteTable:
         cur = self._db.cursor()
         for origin, dest in pairs:
             row = cur.execute(
-                "SELECT edges FROM routes WHERE net=? AND origin=? AND destination=?", (self.net_hash, origin, dest)
+                "SELECT edges FROM routes WHERE net=? AND origin=? AND destination=?",
+                (self.net_hash, origin, dest),
             ).fetchone()
             if row is not None:
                 found[(origin, dest)] = tuple(row[0].split()) if row[0] else None
         return found
 
-    def routes(self, pairs: list[tuple[str, str]], net_file: Path, workdir: Path) -> dict[tuple[str, str], tuple[str, ...] | None]:
+    def routes(
+        self, pairs: list[tuple[str, str]], net_file: Path, workdir: Path
+    ) -> dict[tuple[str, str], tuple[str, ...] | None]:
         """Routes for all pairs: from the table where stored, else computed with A* and stored."""
         unique = list(dict.fromkeys(pairs))
         result = self.lookup(unique)
@@ -65,7 +68,9 @@ class RouteTable:
         return result
 
 
-def compute_routes(pairs: list[tuple[str, str]], net_file: Path, workdir: Path) -> dict[tuple[str, str], tuple[str, ...]]:
+def compute_routes(
+    pairs: list[tuple[str, str]], net_file: Path, workdir: Path
+) -> dict[tuple[str, str], tuple[str, ...]]:
     """Route origin/destination edge pairs with SUMO's A* (duarouter); unroutable pairs are left out."""
     trips = workdir / "od.trips.xml"
     out = workdir / "od.rou.xml"

@@ -22,7 +22,16 @@ from xml.sax.saxutils import quoteattr
 
 SIGN_SIDE_OFFSET_M = 1.0  # from the right edge of the road
 SPEED_CHANGE_MIN_MPS = 0.5
-SIGN_KINDS = ("stop", "allway_stop", "give_way", "traffic_light", "speed_limit", "city_limit", "one_way", "no_entry")
+SIGN_KINDS = (
+    "stop",
+    "allway_stop",
+    "give_way",
+    "traffic_light",
+    "speed_limit",
+    "city_limit",
+    "one_way",
+    "no_entry",
+)
 
 
 @dataclass(frozen=True)
@@ -57,7 +66,9 @@ def _speed_source(edge) -> str:
     tagged = params.get("maxspeed", "")
     if tagged and tagged.replace(".", "", 1).split(" ")[0].isdigit():
         return "maxspeed"
-    if tagged or any(k in params for k in ("source:maxspeed", "maxspeed:type", "zone:maxspeed", "zone:traffic")):
+    if tagged or any(
+        k in params for k in ("source:maxspeed", "maxspeed:type", "zone:maxspeed", "zone:traffic")
+    ):
         return "zone"
     return "road_type"
 
@@ -75,9 +86,11 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
     for jid, kind in sorted(junction_kind.items()):
         node = net.getNode(jid)
         signed = {e for p in placements if p.junction == jid for e in p.approach_edges}
-        approaches = _minor_incoming(node, signed) if kind != "allway_stop" else [
-            e for e in node.getIncoming() if e.getFunction() != "internal"
-        ]
+        approaches = (
+            _minor_incoming(node, signed)
+            if kind != "allway_stop"
+            else [e for e in node.getIncoming() if e.getFunction() != "internal"]
+        )
         for edge in approaches:
             x, y, h = _roadside(edge, at_end=True)
             signs.append(Sign(kind, x, y, h, edge.getID(), source="osm"))
@@ -90,10 +103,14 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
         outgoing = [e for e in node.getOutgoing() if e.getFunction() != "internal"]
         two_way_here = any(not _is_oneway(e) for e in incoming + outgoing)
         for out in outgoing:
-            continued = [c.getFrom() for e in incoming for c in e.getConnections(out) if c.getDirection() == "s"]
+            continued = [
+                c.getFrom() for e in incoming for c in e.getConnections(out) if c.getDirection() == "s"
+            ]
             if any(abs(e.getSpeed() - out.getSpeed()) > SPEED_CHANGE_MIN_MPS for e in continued):
                 x, y, h = _roadside(out, at_end=False)
-                signs.append(Sign("speed_limit", x, y, h, out.getID(), round(out.getSpeed() * 3.6), _speed_source(out)))
+                signs.append(
+                    Sign("speed_limit", x, y, h, out.getID(), round(out.getSpeed() * 3.6), _speed_source(out))
+                )
             if two_way_here and _is_oneway(out) and len(incoming) + len(outgoing) > 2:
                 x, y, h = _roadside(out, at_end=False)
                 signs.append(Sign("one_way", x, y, h, out.getID(), source="oneway"))
@@ -125,7 +142,12 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
 def write_signs(signs: list[Sign], path: Path) -> None:
     lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<additional>"]
     for i, s in enumerate(signs):
-        params = [("kind", s.kind), ("heading_deg", f"{s.heading_deg:.1f}"), ("edge", s.edge), ("source", s.source)]
+        params = [
+            ("kind", s.kind),
+            ("heading_deg", f"{s.heading_deg:.1f}"),
+            ("edge", s.edge),
+            ("source", s.source),
+        ]
         if s.value is not None:
             params.append(("value", f"{s.value:g}"))
         body = "".join(f"<param key={quoteattr(k)} value={quoteattr(v)}/>" for k, v in params)

@@ -89,7 +89,9 @@ class SumoBridge:
             world.width_m[slot] = veh.getWidth(vid)
         events = [SumoEvent("teleport", v) for v in sim.getStartingTeleportIDList()]
         for c in sim.getCollisions():
-            events.append(SumoEvent("collision", c.collider, f"with {c.victim} ({c.type}) on {c.lane}", c.colliderSpeed))
+            events.append(
+                SumoEvent("collision", c.collider, f"with {c.victim} ({c.type}) on {c.lane}", c.colliderSpeed)
+            )
         self._read(world)
         ego = world.slot_of.get(self.ego_id) if self.ego_id else None
         if ego is not None:  # keepRoute=2 places an ego that left the road off-lane (empty lane id)

@@ -35,7 +35,9 @@ def sumo_env() -> dict[str, str]:
 def binary(name: str) -> str:
     path = sumo_home() / "bin" / name
     if not path.exists():
-        raise CosimError(f"SUMO tool {name} not found at {path}; reinstall the eclipse-sumo wheel (make clean test)")
+        raise CosimError(
+            f"SUMO tool {name} not found at {path}; reinstall the eclipse-sumo wheel (make clean test)"
+        )
     return str(path)
 
 

@@ -52,7 +52,9 @@ class VanetParams:
     sotdma: SotdmaParams = field(default_factory=SotdmaParams)
     channel: ChannelParams = field(default_factory=ChannelParams)
     obu: ObuParams = field(default_factory=ObuParams)
-    rx_log: Literal["all", "ego", "none"] = "ego"  # which receptions go to /vanet/rx ("all": ~10^6 rows/s at 1000)
+    rx_log: Literal["all", "ego", "none"] = (
+        "ego"  # which receptions go to /vanet/rx ("all": ~10^6 rows/s at 1000)
+    )
 
     def __post_init__(self) -> None:
         # the frame must hold the largest CAM: frame_layout raises ValueError otherwise

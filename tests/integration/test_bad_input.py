@@ -8,8 +8,8 @@ import subprocess
 import sys
 
 import pytest
-from testpaths import shared_map
 from osm_factory import OsmSketch
+from testpaths import shared_map
 
 
 def cosim(*args, cwd=None):
@@ -24,7 +24,9 @@ def assert_clean_failure(proc, words: str, out_dir):
     assert words in lines[0], lines[0]
     assert not out_dir.exists()
     cache = os.environ["COSIM_CACHE_DIR"]
-    leftovers = [p for p in os.listdir(cache) if p.startswith(("net-", "scn-"))] if os.path.isdir(cache) else []
+    leftovers = (
+        [p for p in os.listdir(cache) if p.startswith(("net-", "scn-"))] if os.path.isdir(cache) else []
+    )
     assert not leftovers
 
 
@@ -37,7 +39,9 @@ def test_truncated_gzip(tmp_path):
     data = shared_map("munich").read_bytes()
     bad = tmp_path / "cut.osm.gz"
     bad.write_bytes(data[: len(data) // 2])
-    assert_clean_failure(cosim("build-scenario", "--osm", str(bad), "--out", str(tmp_path / "o")), "cut.osm.gz", tmp_path / "o")
+    assert_clean_failure(
+        cosim("build-scenario", "--osm", str(bad), "--out", str(tmp_path / "o")), "cut.osm.gz", tmp_path / "o"
+    )
 
 
 def test_xml_that_is_not_osm(tmp_path):
@@ -51,7 +55,9 @@ def test_garbage_bytes(tmp_path):
     bad = tmp_path / "g.osm.gz"
     with gzip.open(bad, "wb") as fh:
         fh.write(b"\x00\x01 this is not xml")
-    assert_clean_failure(cosim("build-scenario", "--osm", str(bad), "--out", str(tmp_path / "o")), "g.osm.gz", tmp_path / "o")
+    assert_clean_failure(
+        cosim("build-scenario", "--osm", str(bad), "--out", str(tmp_path / "o")), "g.osm.gz", tmp_path / "o"
+    )
 
 
 def test_osm_without_drivable_roads(tmp_path):
@@ -60,7 +66,11 @@ def test_osm_without_drivable_roads(tmp_path):
     s.node("b", 100, 0)
     s.way(["a", "b"], highway="footway")
     osm = s.write(tmp_path / "paths.osm")
-    assert_clean_failure(cosim("build-scenario", "--osm", str(osm), "--out", str(tmp_path / "o")), "no drivable road", tmp_path / "o")
+    assert_clean_failure(
+        cosim("build-scenario", "--osm", str(osm), "--out", str(tmp_path / "o")),
+        "no drivable road",
+        tmp_path / "o",
+    )
 
 
 def test_unknown_density(tmp_path):
@@ -73,7 +83,10 @@ def test_unknown_density(tmp_path):
     [
         ("seed: 1\nfoo: 2\n", "config foo: unknown key"),
         ("ego:\n  depart_s: abc\n", "config ego.depart_s: expected a number"),
-        ("timing:\n  physics_timestep_s: 0.003\n", "config timing: sumo_step_s (0.1) must be an integer multiple"),
+        (
+            "timing:\n  physics_timestep_s: 0.003\n",
+            "config timing: sumo_step_s (0.1) must be an integer multiple",
+        ),
         ("timing:\n  cam_check_period_s: 0.15\n", "config timing: cam_check_period_s"),
         ("scenario:\n  demand:\n    density: extreme\n", "unknown density 'extreme'"),
         ("seed: [1\n", "is not valid YAML"),

@@ -11,8 +11,8 @@ import time
 
 import libsumo
 import pytest
-from testpaths import shared_map
 from osm_factory import OsmSketch
+from testpaths import shared_map
 
 from cosim.log import read
 from cosim.runconfig import load_run_config
@@ -21,8 +21,7 @@ from cosim.sim import Simulation
 from cosim.sumo_bridge.bridge import EGO_ID, SumoBridge
 from cosim.world import World
 
-
-# libsumo runs one simulation per process: each test gets its own (forked) process
+# libsumo runs one simulation per process: each test gets its own process (tests/conftest.py)
 pytestmark = pytest.mark.own_process
 
 

@@ -16,7 +16,7 @@ from cosim.sim import Simulation
 ROOT = Path(__file__).resolve().parents[2]
 
 
-# libsumo runs one simulation per process: each test gets its own (forked) process
+# libsumo runs one simulation per process: each test gets its own process (tests/conftest.py)
 pytestmark = pytest.mark.own_process
 
 

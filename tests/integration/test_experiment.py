@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import shutil
@@ -37,7 +36,9 @@ def test_summary_has_the_three_phases_per_participant(short_experiment):
     for part, order in zip(summary["participants"], (["baseline", "system_A", "system_B"],
                                                        ["baseline", "system_B", "system_A"]), strict=True):  # fmt: skip
         assert [p["phase"] for p in part["phases"]] == order
-        assert [p["system"] for p in part["phases"]] == [{"baseline": "none", "system_A": "A", "system_B": "B"}[o] for o in order]
+        assert [p["system"] for p in part["phases"]] == [
+            {"baseline": "none", "system_A": "A", "system_B": "B"}[o] for o in order
+        ]
         assert part["run"]["collisions"] == 0 or part["run"]["collisions"] < 5
     on_disk = json.loads((out / "summary.json").read_text())
     assert on_disk["participants"][0]["participant"] == "P1"
@@ -93,7 +94,13 @@ def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     a = read(tmp_path / "run.mcap", topics=["/adas/state"])["/adas/state"]
     shown = a["b_gap_s"].astype(float)
     sumo = np.interp(a["t_s"], ts, tgap, left=np.nan, right=np.nan)
-    both = np.isfinite(shown) & np.isfinite(sumo) & (shown < 9.9) & (sumo < 9.9) & (a["b_leader_id"] == a["leader_id"])
+    both = (
+        np.isfinite(shown)
+        & np.isfinite(sumo)
+        & (shown < 9.9)
+        & (sumo < 9.9)
+        & (a["b_leader_id"] == a["leader_id"])
+    )
     assert both.sum() > 200
     err = np.abs(shown[both] - sumo[both])
     assert np.median(err) < 0.1 and np.percentile(err, 90) < 0.3, (np.median(err), np.percentile(err, 90))

@@ -12,7 +12,9 @@ from cosim.scenario import build_scenario
 def reports(tmp_path_factory):
     out = {}
     for name in ("munich", "krems", "helsinki"):
-        scn = build_scenario(shared_map(name), tmp_path_factory.mktemp(name), density="low", seed=1, log=lambda *a: None)
+        scn = build_scenario(
+            shared_map(name), tmp_path_factory.mktemp(name), density="low", seed=1, log=lambda *a: None
+        )
         out[name] = scn.report
     return out
 

@@ -11,8 +11,7 @@ from cosim.scenario import build_scenario
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.sumo_bridge.tools import binary
 
-
-# libsumo runs one simulation per process: each test gets its own (forked) process
+# libsumo runs one simulation per process: each test gets its own process (tests/conftest.py)
 pytestmark = pytest.mark.own_process
 
 

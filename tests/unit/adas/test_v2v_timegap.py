@@ -40,7 +40,9 @@ def test_gap_is_the_straight_distance_to_the_leaders_rear():
     e = VehicleState(0.0, 0.0, 90.0, 12.5, 4.5)
     cam = CamData(0.0, 30.0, 3.0, 90.0, 12.5, LEAD_LEN)
     out = V2VTimeGapWarning().update(0.0, e, cam)
-    assert out.gap_m == pytest.approx(math.hypot(25.0, 3.0)) and out.time_gap_s == pytest.approx(out.gap_m / 12.5)
+    assert out.gap_m == pytest.approx(math.hypot(25.0, 3.0)) and out.time_gap_s == pytest.approx(
+        out.gap_m / 12.5
+    )
 
 
 def test_gap_stays_positive_around_a_bend():

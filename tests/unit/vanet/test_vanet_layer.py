@@ -41,7 +41,10 @@ def run(params, steps=40, seed=5, world_seed=0, buildings=CITY):
 
 
 def test_same_seed_same_results_and_seed_matters():
-    for params in (VanetParams(rx_log="all"), VanetParams(channel=ChannelParams(shadowing="veins", interference="sinr"), rx_log="all")):
+    for params in (
+        VanetParams(rx_log="all"),
+        VanetParams(channel=ChannelParams(shadowing="veins", interference="sinr"), rx_log="all"),
+    ):
         _, a = run(params)
         _, b = run(params)
         for ra, rb in zip(a, b, strict=True):

@@ -88,7 +88,9 @@ def test_summary_handles_missing_topics():
 
 def test_report_on_a_layer_run_writes_plots(tmp_path):
     w = make_world([[0, i * 60.0] for i in range(8)], heading_deg=0.0, speed_mps=8.0, ego=0)
-    layer = VanetLayer(VanetParams(channel=ChannelParams(shadowing="none"), rx_log="all"), [], np.random.default_rng(0))
+    layer = VanetLayer(
+        VanetParams(channel=ChannelParams(shadowing="none"), rx_log="all"), [], np.random.default_rng(0)
+    )
     cols: dict[str, dict[str, list]] = {}
     for k in range(40):
         w.step = k
