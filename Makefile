@@ -21,7 +21,7 @@ test-fast: $(STAMP)
 	$(PY) -m pytest -q -ra -m 'not slow'
 
 experiment: $(STAMP)
-	$(VENV)/bin/cosim experiment configs/experiment.yaml
+	$(VENV)/bin/cosim experiment configs/experiment.yaml --clip
 
 bench: $(STAMP)
 	$(PY) -m bench.run_all

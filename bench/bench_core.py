@@ -36,7 +36,7 @@ def _warm_steps(seconds: float) -> int:
     return round(seconds / 0.1)
 
 
-def bare(n: int, seconds: float, q) -> None:
+def bare(q, n: int, seconds: float) -> None:
     import libsumo
 
     from cosim.sumo_bridge.tools import binary
@@ -70,7 +70,7 @@ def bare(n: int, seconds: float, q) -> None:
     libsumo.close()
 
 
-def core(n: int, seconds: float, q, traci: bool = False, vanet: bool = False, mujoco: bool = False) -> None:
+def core(q, n: int, seconds: float, traci: bool = False, vanet: bool = False, mujoco: bool = False) -> None:
     """The cosim loop with logging; ``vanet`` adds the radio (every vehicle a station), ``mujoco`` the
     physics ego with its scripted driver."""
     from cosim.runconfig import load_run_config
@@ -104,10 +104,10 @@ def core(n: int, seconds: float, q, traci: bool = False, vanet: bool = False, mu
     q.put(res)
 
 
-def readers(n: int, seconds: float, q) -> None:
+def readers(q, n: int, seconds: float) -> None:
     """Per-step cost of reading x, y, angle, speed, accel, lane for all vehicles, three ways."""
     import libsumo
-    import libsumo.constants as tc
+    import traci.constants as tc  # the same constants serve libsumo
 
     from cosim.sumo_bridge.tools import binary
 
@@ -170,7 +170,7 @@ def readers(n: int, seconds: float, q) -> None:
 
 def _in_process(fn, *args):
     q = mp.get_context("spawn").Queue()
-    p = mp.get_context("spawn").Process(target=fn, args=(*args, q))
+    p = mp.get_context("spawn").Process(target=fn, args=(q, *args))
     p.start()
     while True:  # a child that dies without answering must not hang the benchmark
         try:

@@ -21,6 +21,8 @@ import argparse
 import json
 import multiprocessing as mp
 import os
+import queue
+import sys
 import time
 from pathlib import Path
 
@@ -33,6 +35,9 @@ def _config(**overrides):
     from cosim.runconfig import load_run_config
 
     return load_run_config(CONFIG, **overrides)
+
+
+# each part puts its row(s) on the queue q
 
 
 def scene_part(q) -> None:
@@ -96,8 +101,9 @@ def drive_part(label: str, size: tuple[int, int], seconds: float, overrides: dic
     try:
         with Simulation(cfg) as sim:
             session.scene_for(sim)
-            wait_for_ego(sim)
-            while sim.world.t_s < 30.0:  # SUMO's initial insertions are slow: start in settled traffic
+            wait_for_ego(sim)  # at medium-high density on the whole map the ego departs after ~160 s
+            t_ready = sim.world.t_s + 20.0
+            while sim.world.t_s < t_ready:  # SUMO's initial insertions are slow: start in settled traffic
                 sim.step()
             stats = session.run(sim, duration_s=seconds)
             stats["vehicles"] = sim.world.n_valid
@@ -107,14 +113,31 @@ def drive_part(label: str, size: tuple[int, int], seconds: float, overrides: dic
     q.put({"part": "drive", "traffic": label, "size": f"{size[0]}x{size[1]}", **{k: stats[k] for k in keep}})
 
 
+def _guarded(target, args, q) -> None:
+    try:
+        target(*args, q)
+    except Exception as exc:  # noqa: BLE001 - report the failure as a row, keep the other parts
+        q.put({"part": target.__name__, "error": f"{type(exc).__name__}: {exc}"})
+
+
 def _run(target, *args):
     ctx = mp.get_context("spawn")
     q = ctx.Queue()
-    p = ctx.Process(target=target, args=(*args, q))
+    p = ctx.Process(target=_guarded, args=(target, args, q))
     p.start()
-    out = q.get()
+    while True:
+        try:
+            out = q.get(timeout=5.0)
+            break
+        except queue.Empty:
+            if not p.is_alive():
+                out = {"part": target.__name__, "error": f"process ended with code {p.exitcode}"}
+                break
     p.join()
-    return out if isinstance(out, list) else [out]
+    rows = out if isinstance(out, list) else [out]
+    for r in rows:
+        print("  ".join(f"{k}={v}" for k, v in r.items()), file=sys.stderr, flush=True)
+    return rows
 
 
 def main() -> None:
@@ -138,9 +161,23 @@ def main() -> None:
                 rows += _run(drive_part, label, size, args.seconds, over)
     if args.json:
         print(json.dumps(rows))
-        return
-    for r in rows:
-        print("  ".join(f"{k}={v}" for k, v in r.items()))
+    else:
+        print(markdown(rows))
+
+
+def markdown(rows: list[dict]) -> str:
+    """One table per part (the format BENCHMARKS.md uses)."""
+    out = []
+    for part, title in (("scene", "Scene generation (default map)"), ("fps", "Driver view, render + HUD"),
+                        ("drive", "cosim drive real-time loop (headless window, scripted driver)")):  # fmt: skip
+        sel = [r for r in rows if r.get("part") == part or r.get("part", "").startswith(part)]
+        if not sel:
+            continue
+        cols = [k for k in dict.fromkeys(k for r in sel for k in r) if k != "part"]
+        out += [f"**{title}**", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+        out += ["| " + " | ".join(str(r.get(c, "")) for c in cols) + " |" for r in sel]
+        out.append("")
+    return "\n".join(out)
 
 
 if __name__ == "__main__":

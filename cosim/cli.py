@@ -82,13 +82,28 @@ def _experiment(args) -> int:
     from cosim.experiment.runner import run_experiment
 
     exp, base = load_experiment(args.config, map_path=args.map, participants=args.participants,
-                                phase_duration_s=args.phase_duration)  # fmt: skip
+                                phase_duration_s=args.phase_duration,
+                                participant_driver=args.participant_driver)  # fmt: skip
     out = Path(args.out) if args.out else Path("results") / exp.name
     summary = run_experiment(exp, base, out, jobs=args.jobs, quiet=args.quiet)
     if not args.quiet:
         print((out / "summary.md").read_text())
+    if args.clip:
+        _clip(out / exp.participants[0].id)
     print(f"results in {out}/ ({summary['wall_s']:.0f} s wall for {summary['simulated_s']:.0f} simulated s)")
     return 0
+
+
+def _clip(participant_dir: Path) -> None:
+    """A short video of one participant's system-A and system-B phases (needs the `video` extra)."""
+    try:
+        from cosim.world3d.replay import RenderParams, render_phase_clip
+
+        render_phase_clip(participant_dir / "run.mcap", participant_dir / "clip.mp4",
+                          params=RenderParams(width=640, height=360))  # fmt: skip
+        print(f"clip: {participant_dir / 'clip.mp4'}")
+    except CosimError as exc:  # no ffmpeg / no EGL: the experiment's results stand without the clip
+        print(f"cosim: no clip: {exc}", file=sys.stderr)
 
 
 def _compare(args) -> int:
@@ -151,6 +166,9 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--jobs", type=int, help="parallel processes (default: cores)")
     ex.add_argument("--out", help="output directory (default results/<name>)")
     ex.add_argument("--quiet", action="store_true")
+    ex.add_argument("--participant-driver", choices=("keyboard", "wheel"),
+                    help="a person drives each participant's run in the 3D view (one after the other)")
+    ex.add_argument("--clip", action="store_true", help="also render P1's system-A and system-B phases to clip.mp4")
     ex.set_defaults(fn=_experiment)
 
     cp = sub.add_parser("compare", help="compare two runs' time-gap traces (exit 1 when outside tolerance)")
@@ -165,8 +183,11 @@ def build_parser() -> argparse.ArgumentParser:
     vr.set_defaults(fn=_vanet_report)
 
     from cosim.sweep.cli import add_sweep_parser
+    from cosim.world3d.cli import add_drive_parser, add_render_parser
 
     add_sweep_parser(sub)
+    add_drive_parser(sub)
+    add_render_parser(sub)
 
     lg = sub.add_parser("log", help="inspect a run's MCAP log")
     lsub = lg.add_subparsers(dest="log_command", required=True)

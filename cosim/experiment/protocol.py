@@ -83,7 +83,8 @@ class ExperimentConfig:
 
 
 def load_experiment(path: str | Path, *, map_path: str | None = None, participants: int | None = None,
-                    phase_duration_s: float | None = None) -> tuple[ExperimentConfig, Path]:  # fmt: skip
+                    phase_duration_s: float | None = None,
+                    participant_driver: str | None = None) -> tuple[ExperimentConfig, Path]:  # fmt: skip
     """Load an experiment config; command-line overrides are validated like the file."""
     data = read_yaml(path)
     base = Path(path).resolve().parent
@@ -106,6 +107,8 @@ def load_experiment(path: str | Path, *, map_path: str | None = None, participan
     run = copy.deepcopy(exp.run)
     if map_path is not None:
         run.setdefault("scenario", {})["map"] = str(Path(map_path).resolve())
+    if participant_driver is not None:  # people instead of scripted drivers (keyboard or steering wheel)
+        run.setdefault("ego", {}).setdefault("driver", {})["kind"] = participant_driver
     exp = dataclasses.replace(exp, run=run)
     participant_config(exp, 0, base)  # validate the run part now, with its key paths
     return exp, base

@@ -49,20 +49,26 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
     start = start_time_s(exp, cfg.ego.depart_s)
     order = exp.order_of(index)
     t_wall = time.perf_counter()
-    with Simulation(cfg, out_dir=pdir, quiet=True) as sim:
+
+    def setup(sim) -> None:
         PhaseSchedule(sim, order, start)
         sim.mcap.metadata("experiment", {"name": exp.name, "participant": part.id, "profile": part.profile,
                                          "start_s": start, "order": ",".join(p.name for p in order)})  # fmt: skip
-        steps = sim.steps_total
-        for k in range(steps):
-            sim.step()
-            if progress is not None and k % 50 == 0:
-                progress[part.id] = k / steps
-        stats = {
-            **sim.stats,
-            "simulated_s": round(sim.world.t_s, 1),
-            "wall_s": round(time.perf_counter() - t_wall, 1),
-        }
+
+    if cfg.ego.driver.kind in ("keyboard", "wheel"):  # a person at the wheel: the 3D view, in real time
+        from cosim.world3d.drive import run_drive
+
+        stats = run_drive(cfg, pdir, on_sim=setup)
+    else:
+        with Simulation(cfg, out_dir=pdir, quiet=True) as sim:
+            setup(sim)
+            steps = sim.steps_total
+            for k in range(steps):
+                sim.step()
+                if progress is not None and k % 50 == 0:
+                    progress[part.id] = k / steps
+            stats = {**sim.stats, "simulated_s": round(sim.world.t_s, 1)}
+    stats["wall_s"] = round(time.perf_counter() - t_wall, 1)
     if progress is not None:
         progress[part.id] = 1.0
     log = read(pdir / "run.mcap", topics=["/adas/state", "/ego/state", "/vanet/rx"])
@@ -93,6 +99,9 @@ def run_experiment(
     n = len(exp.participants)
     jobs = max(1, min(jobs or os.cpu_count() or 1, n))
     t0 = time.perf_counter()
+    if first.ego.driver.kind in ("keyboard", "wheel"):  # people drive one after the other, in this process
+        results = [run_participant(exp, i, base, out_dir) for i in range(n)]
+        return _write_summary(exp, results, out_dir, t0, 1)
     ctx = mp.get_context("spawn")
     with ctx.Manager() as manager:
         progress = manager.dict({p.id: 0.0 for p in exp.participants})
@@ -108,6 +117,10 @@ def run_experiment(
             results = [f.result() for f in futures]
     if not quiet:
         sys.stderr.write("\n")
+    return _write_summary(exp, results, out_dir, t0, jobs)
+
+
+def _write_summary(exp: ExperimentConfig, results: list[dict], out_dir: Path, t0: float, jobs: int) -> dict:
     wall = time.perf_counter() - t0
     simulated = sum(r["run"]["simulated_s"] if "simulated_s" in r["run"] else 0 for r in results)
     summary = {"experiment": exp.name, "participants": results, "across": across_participants(results),

@@ -143,7 +143,9 @@ class DriveSession:
     def view(self, scene: Scene) -> render_mod.View:
         if id(scene) not in self._views:
             p = self.params
-            self._views[id(scene)] = render_mod.View(scene, render_mod.ViewParams(p.width, p.height, p.camera, p.hud))
+            self._views[id(scene)] = render_mod.View(
+                scene, render_mod.ViewParams(p.width, p.height, p.camera, p.hud)
+            )
         return self._views[id(scene)]
 
     def run(self, sim, duration_s: float | None = None, should_stop: Callable[[], bool] | None = None,
@@ -157,7 +159,9 @@ class DriveSession:
         src = LiveSource(sim)
         dt = sim.step_s
         # the config's duration counts from t = 0 (steps already run, e.g. waiting for the ego, included)
-        steps_total = max(0, sim.steps_total - sim.stats["steps"]) if duration_s is None else round(duration_s / dt)
+        steps_total = (
+            max(0, sim.steps_total - sim.stats["steps"]) if duration_s is None else round(duration_s / dt)
+        )
         frame_dt = 1.0 / p.fps
         clock = time.perf_counter
         rtf_window: deque[tuple[float, float]] = deque(maxlen=40)  # (wall, sim time) of recent steps
@@ -237,17 +241,28 @@ class DriveSession:
 
 def run_drive(config, out_dir: str | Path | None, params: DriveParams | None = None, *,
               key_source: Callable[[], Collection[str]] | None = None, quiet: bool = True,
-              ready: Callable[[], None] | None = None) -> dict:  # fmt: skip
+              ready: Callable[[], None] | None = None, on_sim: Callable[[object], None] | None = None) -> dict:  # fmt: skip
     """Open the window, start the simulation of ``config`` (a RunConfig) logging to ``out_dir``, drive it.
 
     key_source: replaces the keyboard driver's key reader (a function returning the pressed key names);
-    for scripted input in tests. ready: called once the first step is about to run.
+    for scripted input in tests. ready: called once the first step is about to run. on_sim: called with
+    the Simulation before the first step (e.g. the experiment's phase schedule).
     """
     from cosim.driver import KeyboardDriver
     from cosim.sim import Simulation
 
     session = DriveSession(params)
     try:
+        drv = config.ego.driver
+        if config.ego.physics == "mujoco" and key_source is None:  # check the device before a log is opened
+            if drv.kind == "wheel":
+                from cosim.driver.wheel import PygameJoystickSource
+
+                PygameJoystickSource(drv.wheel)
+            elif drv.kind == "keyboard":
+                from cosim.driver.keyboard import PygameKeySource
+
+                PygameKeySource(drv.keyboard)
         session.window.message("building the scenario ...")
         say = (lambda *a: None) if quiet else print
         with Simulation(config, out_dir=out_dir, quiet=quiet, log=say) as sim:
@@ -255,6 +270,8 @@ def run_drive(config, out_dir: str | Path | None, params: DriveParams | None = N
                 if sim.ego is None:
                     raise CosimError("key_source needs an ego driven by MuJoCo (ego.physics: mujoco)")
                 sim.ego.driver = KeyboardDriver(config.ego.driver.keyboard, key_source=key_source)
+            if on_sim is not None:
+                on_sim(sim)
             session.scene_for(sim)
             wait_for_ego(sim, session.window)
             if ready is not None:
@@ -268,7 +285,7 @@ def run_drive(config, out_dir: str | Path | None, params: DriveParams | None = N
     return stats
 
 
-def wait_for_ego(sim, window: DriveWindow | None = None, limit_s: float = 120.0) -> None:
+def wait_for_ego(sim, window: DriveWindow | None = None, limit_s: float = 600.0) -> None:
     """Step (as fast as possible, logged as usual) until the ego is on the road, so the person does not
     wait in real time through SUMO's insertion of the initial traffic and the ego's departure delay."""
     steps = round(limit_s / sim.step_s)
@@ -282,66 +299,10 @@ def wait_for_ego(sim, window: DriveWindow | None = None, limit_s: float = 120.0)
     raise CosimError(f"the ego did not depart within {limit_s:.0f} s of simulated time; check ego.depart_s")
 
 
-# -- command line ----------------------------------------------------------------------------------------------
-def _size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"size must look like 1280x720, got {text!r}") from None
-    return w, h
-
-
-def add_drive_parser(subparsers) -> argparse.ArgumentParser:
-    """``cosim drive CONFIG``: the window, real-time loop and logging."""
-    from cosim.scenario.demand import DENSITY_NAMES
-
-    d = subparsers.add_parser("drive", help="drive the ego yourself in a 3D window, in real time (logged)")
-    d.add_argument("config", nargs="?", help="run config YAML (default: built-in defaults)")
-    d.add_argument("--driver", choices=("keyboard", "wheel", "scripted"),
-                   help="who drives (default: the config's ego.driver.kind; 'scripted' = watch the model)")  # fmt: skip
-    d.add_argument("--map", help="OSM file to drive on instead of the config's map")
-    d.add_argument("--density", choices=DENSITY_NAMES)
-    d.add_argument("--duration", type=float, help="simulated (= wall-clock) seconds")
-    d.add_argument("--seed", type=int)
-    d.add_argument("--out", help="output directory (default results/<name>-drive)")
-    d.add_argument("--camera", choices=CAMERA_CYCLE, default="driver", help="first camera (C cycles)")
-    d.add_argument("--size", type=_size, default=(1280, 720), help="window size WxH (default 1280x720)")
-    d.add_argument("--fps", type=float, default=30.0, help="frames per second at most (default 30)")
-    d.add_argument("--no-smooth", action="store_true", help="show each step as it is (no interpolation)")
-    d.add_argument("--fullscreen", action="store_true")
-    d.add_argument("--quiet", action="store_true", help="print the result as JSON only")
-    d.set_defaults(fn=main_drive)
-    return d
-
-
-def main_drive(args) -> int:
-    import json
-
-    from cosim.runconfig import load_run_config
-
-    overrides = {"scenario.map": args.map, "scenario.demand.density": args.density, "duration_s": args.duration,
-                 "seed": args.seed, "ego.driver.kind": args.driver}  # fmt: skip
-    config = load_run_config(args.config, **overrides)
-    if not config.ego.enabled:
-        raise CosimError("cosim drive needs an ego (ego.enabled: true in the config)")
-    out = Path(args.out) if args.out else Path("results") / f"{config.name}-drive"
-    try:
-        params = DriveParams(width=args.size[0], height=args.size[1], camera=args.camera, fps=args.fps,
-                             smooth=not args.no_smooth, fullscreen=args.fullscreen)  # fmt: skip
-    except ValueError as exc:
-        raise CosimError(str(exc)) from None
-    if not args.quiet:
-        who = config.ego.driver.kind
-        print(f"cosim drive: {who} driver, {config.duration_s:.0f} s, logging to {out / 'run.mcap'}; "
-              "Esc ends, C changes the camera", file=sys.stderr)  # fmt: skip
-    stats = run_drive(config, out, params, quiet=args.quiet,
-                      ready=lambda: print("cosim drive: ready", file=sys.stderr, flush=True))  # fmt: skip
-    print(json.dumps(stats) if args.quiet else "\n".join(f"{k}: {v}" for k, v in stats.items()))
-    return 0
-
-
 def main(argv: list[str] | None = None) -> int:
     """``python -m cosim.world3d.drive`` (the same as ``cosim drive`` once the CLI wires it)."""
+    from cosim.world3d.cli import add_drive_parser
+
     parser = argparse.ArgumentParser(prog="cosim")
     add_drive_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["drive", *(sys.argv[1:] if argv is None else argv)])
@@ -355,4 +316,4 @@ def main(argv: list[str] | None = None) -> int:
 if __name__ == "__main__":
     sys.exit(main())
 
-__all__ = ["DriveParams", "DriveSession", "DriveWindow", "add_drive_parser", "main_drive", "run_drive"]
+__all__ = ["DriveParams", "DriveSession", "DriveWindow", "run_drive", "wait_for_ego"]

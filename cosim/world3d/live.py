@@ -84,6 +84,8 @@ class LiveSource:
 
     def frame(self, real_time_factor: float | None = None, note: str | None = None) -> FrameState:
         sim = self.sim
+        if note is None and sim.bridge is not None and not getattr(sim.bridge, "ego_on_road", True):
+            note = "off the road"
         pose, speed, limit, leader = self.ego_pose()
         lights: dict[str, str] = {}
         if sim.bridge is not None:

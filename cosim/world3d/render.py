@@ -17,7 +17,11 @@ else:  # imported before us without a choice (GLFW, which needs a display): make
     try:
         from mujoco.rendering.classic import gl_context as _glc
 
-        if sys.platform.startswith("linux") and getattr(_glc, "_MUJOCO_GL", None) == "" and not os.environ.get("MUJOCO_GL"):
+        if (
+            sys.platform.startswith("linux")
+            and getattr(_glc, "_MUJOCO_GL", None) == ""
+            and not os.environ.get("MUJOCO_GL")
+        ):
             from mujoco.egl import GLContext as _EglContext
 
             _glc.GLContext = _EglContext

@@ -95,14 +95,17 @@ class LogReplay:
         n = len(ego["t_s"])
         order = np.argsort(ego["t_s"], kind="stable")
         self.ego_t = ego["t_s"][order].astype(np.float64)
-        cx, cy, yaw = frames.sumo_to_mujoco(ego["x_m"][order], ego["y_m"][order], ego["heading_deg"][order], ego_length_m)
+        cx, cy, yaw = frames.sumo_to_mujoco(
+            ego["x_m"][order], ego["y_m"][order], ego["heading_deg"][order], ego_length_m
+        )
         self.ego_x, self.ego_y = cx, cy
         self.ego_yaw = np.unwrap(yaw)
         self.ego_speed = _col(ego, "speed_mps", n, 0.0)[order].astype(np.float64)
         self.ego_brake = _col(ego, "brake", n, 0.0)[order].astype(np.float64)
         self.ego_leader = list(_col(ego, "leader_id", n, None)[order])
         self.ego_edge = list(_col(ego, "edge", n, "")[order])
-        self.ego_lane = _col(ego, "lane_index", n, -1)[order]
+        self.ego_lane = _col(ego, "lane_index", n, -1)[order].astype(np.float64)
+        self._limits: dict[int, float | None] = {}
         # traffic samples
         self.samples: list[tuple[float, VehicleFrame]] = []
         tv = topics.get("/traffic/vehicles")
@@ -112,7 +115,9 @@ class LogReplay:
             heading = tv["heading_deg"].astype(np.float64)
             vx, vy, vyaw = frames.sumo_to_mujoco(tv["x_m"].astype(np.float64), tv["y_m"].astype(np.float64), heading,
                                                  scv_length_m)  # fmt: skip
-            braking = (np.nan_to_num(_col(tv, "signals", m, 0).astype(np.float64)).astype(np.int64) & BRAKE_BIT) != 0
+            braking = (
+                np.nan_to_num(_col(tv, "signals", m, 0).astype(np.float64)).astype(np.int64) & BRAKE_BIT
+            ) != 0
             ids = tv["id"]
             for t in np.unique(t_all):
                 sel = np.flatnonzero(t_all == t)
@@ -156,13 +161,31 @@ class LogReplay:
             t, n = cols["t_s"], len(cols["t_s"])
             if sys_b is None and "time_gap_s" in cols and name.startswith("/adas"):
                 levels = [str(v) if str(v) in LEVELS else "none" for v in _col(cols, "level", n, "none")]
-                sys_b = _Steps(t, [(num(g), lv, True) for g, lv in zip(cols["time_gap_s"], levels, strict=True)])
+                sys_b = _Steps(
+                    t, [(num(g), lv, True) for g, lv in zip(cols["time_gap_s"], levels, strict=True)]
+                )
             if sys_a is None and "display_lit" in cols and name.startswith("/adas"):
                 seen = _col(cols, "perceived", n, False)
-                sys_a = _Steps(t, [(bool(a), bool(b)) for a, b in zip(cols["display_lit"], seen, strict=True)])
+                sys_a = _Steps(
+                    t, [(bool(a), bool(b)) for a, b in zip(cols["display_lit"], seen, strict=True)]
+                )
             if phase is None and "phase" in cols:
                 phase = _Steps(t, [str(v) if v not in (None, "") else None for v in cols["phase"]])
         return sys_b, sys_a, phase
+
+    def _limit_at(self, k: int) -> float | None:
+        """Speed limit of the ego's lane at record k; on a junction's internal lane (not in the scene's
+        network) the last limit before it."""
+        cache = self._limits
+        while k >= 0:
+            if k not in cache:
+                edge, lane = self.ego_edge[k], self.ego_lane[k]
+                ok = isinstance(edge, str) and edge and not edge.startswith(":") and np.isfinite(lane)
+                cache[k] = self.lane_speed(edge, int(lane)) if ok else None
+            if cache[k] is not None:
+                return cache[k]
+            k -= 1
+        return None
 
     @property
     def t_range(self) -> tuple[float, float]:
@@ -193,8 +216,7 @@ class LogReplay:
         ego = EgoPose(x, y, yaw, braking=bool(np.isfinite(brake) and brake > 0.05))
         leader = self.ego_leader[k]
         leader = None if leader is None or (isinstance(leader, float) and math.isnan(leader)) else str(leader)
-        lane = self.ego_lane[k]
-        limit = self.lane_speed(self.ego_edge[k], int(lane)) if self.ego_edge[k] and np.isfinite(lane) else None
+        limit = self._limit_at(k)
         lights = {lid: s for lid, steps in self.lights.items() if (s := steps.at(t)) is not None}
         gap, level, sys_b_on = None, "none", False
         if self.sys_b is not None and (rec := self.sys_b.at(t)) is not None:
@@ -209,7 +231,9 @@ class LogReplay:
 
 
 # -- the run's scenario ----------------------------------------------------------------------------------------
-def run_scenario(metadata: dict[str, dict[str, str]], scenario_dir: str | Path | None = None, quiet: bool = True):
+def run_scenario(
+    metadata: dict[str, dict[str, str]], scenario_dir: str | Path | None = None, quiet: bool = True
+):
     """(Scenario, RunConfig) of a logged run: the given directory, the cached build, or a rebuild."""
     from cosim.config import from_dict
     from cosim.runconfig import RunConfig
@@ -226,7 +250,9 @@ def run_scenario(metadata: dict[str, dict[str, str]], scenario_dir: str | Path |
         d = Path(scenario_dir)
         if not (d / "network.net.xml").exists():
             raise CosimError(f"{d} is not a scenario directory (no network.net.xml)")
-        return Scenario(d, json.loads((d / "report.json").read_text()) if (d / "report.json").exists() else {}), config
+        return Scenario(
+            d, json.loads((d / "report.json").read_text()) if (d / "report.json").exists() else {}
+        ), config
     key = meta.get("scenario_key", "")
     cached = cache_dir() / "scenarios" / key
     if key and (cached / "report.json").exists():
@@ -240,6 +266,39 @@ def run_scenario(metadata: dict[str, dict[str, str]], scenario_dir: str | Path |
     return build_scenario(config.scenario.map, config=config.scenario, seed=config.seed, log=say), config
 
 
+def phase_windows(
+    state: dict[str, np.ndarray], systems=("A", "B"), seconds: float = 20.0
+) -> list[tuple[str, float, float]]:
+    """(system, start, end) of a ``seconds`` span from the middle of each listed system's phase, read from
+    the decoded ``/adas/state`` columns; systems that never ran are left out."""
+    t = np.asarray(state.get("t_s", ()), dtype=np.float64)
+    used = np.asarray(state.get("system", ()), dtype=object)
+    out = []
+    for system in systems:
+        when = t[used == system]
+        if when.size == 0:
+            continue
+        mid = 0.5 * (when[0] + when[-1])
+        half = 0.5 * min(seconds, when[-1] - when[0])
+        out.append((system, float(mid - half), float(mid + half)))
+    return out
+
+
+def render_phase_clip(log_path: str | Path, out: str | Path, systems=("A", "B"), seconds: float = 20.0,
+                      params: RenderParams | None = None, **kwargs) -> dict:  # fmt: skip
+    """One video of ``seconds`` from the middle of each system's phase of a run (e.g. an experiment
+    participant's system A and system B), in that order; the HUD names the phase."""
+    from cosim.log import read
+
+    state = read(log_path, topics=["/adas/state"]).topics.get("/adas/state", {})
+    spans = phase_windows(state, systems, seconds)
+    if not spans:
+        raise CosimError(f"{log_path} has no /adas/state records with system {' or '.join(systems)} in use")
+    summary = render_log(log_path, out, None, params, windows=[(a, b) for _, a, b in spans], **kwargs)
+    summary["windows"] = [{"system": s, "start_s": round(a, 2), "end_s": round(b, 2)} for s, a, b in spans]
+    return summary
+
+
 # -- output ----------------------------------------------------------------------------------------------------
 class _Mp4Writer:
     """H.264 MP4 through imageio-ffmpeg; written to a temporary file and moved into place when complete."""
@@ -248,7 +307,9 @@ class _Mp4Writer:
         try:
             import imageio_ffmpeg
         except ImportError:
-            raise CosimError("MP4 output needs imageio-ffmpeg: pip install 'cosim[video]' (or use --frames DIR)") from None
+            raise CosimError(
+                "MP4 output needs imageio-ffmpeg: pip install 'cosim[video]' (or use --frames DIR)"
+            ) from None
         self.path = path
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".mp4", dir=path.parent)
@@ -276,8 +337,12 @@ class _Mp4Writer:
 
 def render_log(log_path: str | Path, out: str | Path | None = None, frames_dir: str | Path | None = None,
                params: RenderParams | None = None, *, scenario_dir=None, scene_params: SceneParams | None = None,
-               quiet: bool = True) -> dict:  # fmt: skip
-    """Render a logged run to an MP4 (``out``) and/or PNG stills (``frames_dir``); returns a summary."""
+               quiet: bool = True, windows: list[tuple[float, float]] | None = None) -> dict:  # fmt: skip
+    """Render a logged run to an MP4 (``out``) and/or PNG stills (``frames_dir``); returns a summary.
+
+    windows: (start, end) spans of simulated time [s] to show one after the other in one video (instead
+    of ``params.start_s`` .. ``params.end_s``).
+    """
     from PIL import Image
 
     from cosim.log import read
@@ -307,12 +372,16 @@ def render_log(log_path: str | Path, out: str | Path | None = None, frames_dir: 
     replay = LogReplay(log.topics, ego_length_m=config.ego.car.length_m, scv_length_m=p.scv_length_m,
                        lane_speed=lane_speed)  # fmt: skip
     t_first, t_last = replay.t_range
-    start = t_first if p.start_s is None else max(p.start_s, t_first)
-    end = t_last if p.end_s is None else min(p.end_s, t_last)
-    if end < start:
-        raise CosimError(f"no ego records between {start:.1f} s and {end:.1f} s (the ego is logged from "
-                         f"{t_first:.1f} s to {t_last:.1f} s)")  # fmt: skip
-    times = start + np.arange(int(math.floor((end - start) * p.fps + 1e-9)) + 1) / p.fps
+    spans = windows if windows else [(p.start_s, p.end_s)]
+    parts = []
+    for a, b in spans:
+        start = t_first if a is None else max(a, t_first)
+        end = t_last if b is None else min(b, t_last)
+        if end < start:
+            raise CosimError(f"no ego records between {start:.1f} s and {end:.1f} s (the ego is logged from "
+                             f"{t_first:.1f} s to {t_last:.1f} s)")  # fmt: skip
+        parts.append(start + np.arange(int(math.floor((end - start) * p.fps + 1e-9)) + 1) / p.fps)
+    times = np.concatenate(parts)
     view = render_mod.View(scene, render_mod.ViewParams(p.width, p.height, p.camera, p.hud))
     writer = _Mp4Writer(Path(out), p.width, p.height, p.fps) if out is not None else None
     fdir = Path(frames_dir) if frames_dir is not None else None
@@ -346,43 +415,10 @@ def render_log(log_path: str | Path, out: str | Path | None = None, frames_dir: 
             "out": str(out) if out is not None else None, "frames_dir": str(fdir) if fdir else None}  # fmt: skip
 
 
-# -- command line ----------------------------------------------------------------------------------------------
-def add_render_parser(subparsers) -> argparse.ArgumentParser:
-    """``cosim render RUN.mcap [--camera driver|chase|top] [--out video.mp4] [--fps 10] [--frames DIR]``."""
-    from cosim.world3d.drive import _size
-
-    r = subparsers.add_parser("render", help="render a logged run to MP4 / PNG frames (driver, chase or top view)")
-    r.add_argument("log", help="the run's MCAP log (run.mcap)")
-    r.add_argument("--camera", choices=render_mod.CAMERAS, default="driver")
-    r.add_argument("--out", help="MP4 file (default: <camera>.mp4 beside the log, unless --frames is given)")
-    r.add_argument("--frames", help="write PNG stills into this directory (frame_00000.png ...)")
-    r.add_argument("--fps", type=float, default=10.0, help="frames per simulated second (default 10)")
-    r.add_argument("--start", type=float, help="first frame's simulated time [s]")
-    r.add_argument("--end", type=float, help="last frame's simulated time [s]")
-    r.add_argument("--size", type=_size, default=(1280, 720), help="frame size WxH, even (default 1280x720)")
-    r.add_argument("--no-hud", action="store_true", help="leave the HUD out")
-    r.add_argument("--scenario", help="scenario directory to use instead of the run's cached scenario")
-    r.add_argument("--quiet", action="store_true", help="print the result as JSON only")
-    r.set_defaults(fn=main_render)
-    return r
-
-
-def main_render(args) -> int:
-    try:
-        params = RenderParams(camera=args.camera, width=args.size[0], height=args.size[1], fps=args.fps,
-                              start_s=args.start, end_s=args.end, hud=not args.no_hud)  # fmt: skip
-    except ValueError as exc:
-        raise CosimError(str(exc)) from None
-    out = args.out
-    if out is None and args.frames is None:
-        out = str(Path(args.log).with_name(f"{args.camera}.mp4"))
-    summary = render_log(args.log, out, args.frames, params, scenario_dir=args.scenario, quiet=args.quiet)
-    print(json.dumps(summary) if args.quiet else "\n".join(f"{k}: {v}" for k, v in summary.items() if v is not None))
-    return 0
-
-
 def main(argv: list[str] | None = None) -> int:
     """``python -m cosim.world3d.replay`` (the same as ``cosim render`` once the CLI wires it)."""
+    from cosim.world3d.cli import add_render_parser
+
     parser = argparse.ArgumentParser(prog="cosim")
     add_render_parser(parser.add_subparsers(dest="command", required=True))
     args = parser.parse_args(["render", *(sys.argv[1:] if argv is None else argv)])

@@ -204,8 +204,6 @@ class Scene:
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_MATERIAL, "display_off"),
             mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_MATERIAL, "display_on"),
         )
-        self.car_half_length_m = 0.5 * params.scv_length_m
-        self.ego_half_length_m = float(spec.body("ego").userdata[0]) if spec.body("ego").userdata else 2.2
         self._hide(self._ego_geoms)
         self._hide(self._car_geoms.ravel())
         self._hide([self._display_geom])
@@ -657,7 +655,6 @@ def build_scene(scenario, params: SceneParams | None = None, *, car=None, net=No
     for i in range(p.vehicle_pool):
         car_body(f"car{i}", "scv", (0.7, 0.7, 0.7, 1))
     ego = car_body("ego", "egocar", p.ego_rgba)
-    ego.userdata = [0.5 * c.length_m]
     eye = np.array(p.driver_eye_m)
     ego.add_camera(name="driver", pos=list(eye), quat=list(_camera_quat(np.array([1.0, 0.0, -0.03]))),
                    fovy=p.driver_fovy_deg)  # fmt: skip

@@ -40,11 +40,11 @@ def facade(px: int = 64) -> np.ndarray:
 
 
 def ground(px: int = 256, seed: int = 3) -> np.ndarray:
-    """Grass: green with low-contrast noise so that motion over the ground is visible."""
+    """Grass: green with soft low-contrast blotches and fine grain, so that motion over it is visible."""
     rng = np.random.default_rng(seed)
-    noise = rng.normal(0.0, 1.0, (px // 8, px // 8))
-    noise = np.kron(noise, np.ones((8, 8)))
-    noise += 0.5 * rng.normal(0.0, 1.0, (px, px))
+    coarse = Image.fromarray(((rng.normal(0.0, 1.0, (16, 16)) * 40) + 128).clip(0, 255).astype(np.uint8))
+    blotches = (np.asarray(coarse.resize((px, px), Image.Resampling.BICUBIC), dtype=np.float64) - 128) / 40
+    noise = 0.8 * blotches + 0.5 * rng.normal(0.0, 1.0, (px, px))
     base = np.array([92, 128, 64], dtype=np.float64)
     img = base[None, None, :] * (1.0 + 0.06 * noise[:, :, None])
     return np.clip(img, 0, 255).astype(np.uint8)

@@ -206,3 +206,10 @@ def test_log_replay_reads_the_adas_phase_records():
         None,
     )
     assert f3.hud.sys_b_active and f3.hud.sys_b_gap_s is None  # "no data"
+
+
+def test_log_replay_keeps_the_last_speed_limit_across_a_junction():
+    topics = {"/ego/state": _ego_topic([0.0, 0.1, 0.2], [0.0, 1.0, 2.0])}
+    topics["/ego/state"]["edge"] = np.array(["e1", ":J1_0", "e2"], dtype=object)
+    rp = LogReplay(topics, ego_length_m=4.0, lane_speed=lambda e, i: {"e1": 13.89, "e2": 8.33}[e])
+    assert [rp.frame_at(t).hud.speed_limit_mps for t in (0.0, 0.1, 0.2)] == [13.89, 13.89, 8.33]

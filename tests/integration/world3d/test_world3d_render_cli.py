@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -11,17 +15,19 @@ from cosim.world3d import replay
 
 @pytest.fixture(scope="module")
 def run_log(gl, small_scenario, tmp_path_factory):
-    """A 12-s run with system A in use, the scripted driver following the lead vehicle."""
-    from cosim.runconfig import load_run_config
-    from cosim.sim import Simulation
-
+    """A 12-s run with system A in use, the scripted driver following the lead vehicle. It runs as
+    ``cosim run`` in a child process: libsumo runs one simulation per process (tests/conftest.py)."""
     _, _, osm = small_scenario
-    cfg = load_run_config(None, **{"scenario.map": str(osm), "scenario.demand.density": "low", "duration_s": 12.0,
-                                   "ego.depart_s": 0.0, "adas.system": "A", "seed": 1})  # fmt: skip
-    out = tmp_path_factory.mktemp("render-run")
-    with Simulation(cfg, out_dir=out) as sim:
-        sim.run()
-    return out / "run.mcap"
+    d = tmp_path_factory.mktemp("render-run")
+    cfg = d / "run.yaml"
+    cfg.write_text(
+        f"name: render-test\nseed: 1\nduration_s: 12\nscenario: {{map: {osm}, demand: {{density: low}}}}\n"
+        "ego: {depart_s: 0.0}\nadas: {system: A}\n"
+    )
+    proc = subprocess.run([sys.executable, "-m", "cosim.cli", "run", str(cfg), "--out", str(d / "run"), "--quiet"],
+                          capture_output=True, text=True, env=os.environ.copy())  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return d / "run" / "run.mcap"
 
 
 def test_render_to_mp4_with_the_stated_frame_rate(run_log, tmp_path, capsys):
@@ -64,3 +70,18 @@ def test_render_rejects_a_file_that_is_not_a_log(tmp_path, capsys):
     assert "is not an MCAP file" in capsys.readouterr().err
     assert not (tmp_path / "x.mp4").exists()
     assert replay.main([str(bad), "--size", "321x180"]) == 2  # H.264 needs even sizes: one clear line
+
+
+def test_phase_clip_takes_the_middle_of_each_systems_phase(run_log, tmp_path):
+    pytest.importorskip("imageio_ffmpeg", reason="MP4 output needs the 'video' extra (imageio-ffmpeg)")
+    state = {
+        "t_s": np.arange(0.0, 30.0, 0.1),
+        "system": np.array(["none"] * 100 + ["A"] * 100 + ["B"] * 100, dtype=object),
+    }
+    spans = replay.phase_windows(state, ("B", "A"), seconds=4.0)
+    assert [(s, round(a, 2), round(b, 2)) for s, a, b in spans] == [("B", 22.95, 26.95), ("A", 12.95, 16.95)]
+    out = tmp_path / "clip.mp4"
+    summary = replay.render_phase_clip(run_log, out, systems=("A", "B"), seconds=2.0,
+                                       params=replay.RenderParams(width=320, height=180, fps=5.0))  # fmt: skip
+    assert [w["system"] for w in summary["windows"]] == ["A"]  # this run used system A only
+    assert summary["frames"] == 11 and out.stat().st_size > 1000

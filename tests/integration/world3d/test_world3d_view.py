@@ -185,7 +185,7 @@ def test_vehicle_pool_shows_the_nearest_cars_and_the_leaders_display(world):
     view.close()
     scene.apply(FrameState(0.0, EgoPose(x, y, yaw), veh, leader_id="lead", rear_display_lit=False))
     assert scene.model.geom_matid[display] == scene.model.material("display_off").id
-    scene.apply(FrameState(0.0, EgoPose(x, y, yaw), veh[:0] if False else VehicleFrame.empty()))
+    scene.apply(FrameState(0.0, EgoPose(x, y, yaw), VehicleFrame.empty()))
     assert (
         np.all(scene.model.geom_group[body] == HIDDEN_GROUP)
         and scene.model.geom_group[display] == HIDDEN_GROUP
