@@ -36,7 +36,8 @@ def _warm_steps(seconds: float) -> int:
     return round(seconds / 0.1)
 
 
-def bare(q, n: int, seconds: float) -> None:
+def _start_bare(n: int) -> None:
+    """Plain libsumo on the scenario, warmed up for 30 simulated seconds."""
     import libsumo
 
     from cosim.sumo_bridge.tools import binary
@@ -55,6 +56,12 @@ def bare(q, n: int, seconds: float) -> None:
     )
     for _ in range(_warm_steps(30)):
         libsumo.simulationStep()
+
+
+def bare(q, n: int, seconds: float) -> None:
+    import libsumo
+
+    _start_bare(n)
     t0, c0 = time.perf_counter(), time.process_time()
     counts = []
     for _ in range(_warm_steps(seconds)):
@@ -109,22 +116,7 @@ def readers(q, n: int, seconds: float) -> None:
     import libsumo
     import traci.constants as tc  # the same constants serve libsumo
 
-    from cosim.sumo_bridge.tools import binary
-
-    scn = _scenario(n)
-    libsumo.start(
-        [
-            binary("sumo"),
-            "-c",
-            str(scn.sumocfg),
-            "--no-warnings",
-            "true",
-            "--additional-files",
-            str(scn.signs_file),
-        ]
-    )
-    for _ in range(_warm_steps(30)):
-        libsumo.simulationStep()
+    _start_bare(n)
     veh = libsumo.vehicle
     variables = [tc.VAR_POSITION, tc.VAR_ANGLE, tc.VAR_SPEED, tc.VAR_ACCELERATION, tc.VAR_LANE_ID]
     steps = _warm_steps(min(seconds, 10))

@@ -15,7 +15,6 @@ several phases in one window.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import time
@@ -300,17 +299,10 @@ def wait_for_ego(sim, window: DriveWindow | None = None, limit_s: float = 600.0)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m cosim.world3d.drive`` (the same as ``cosim drive`` once the CLI wires it)."""
-    from cosim.world3d.cli import add_drive_parser
+    """``python -m cosim.world3d.drive``: the same as ``cosim drive``."""
+    from cosim.cli import main as cosim_main
 
-    parser = argparse.ArgumentParser(prog="cosim")
-    add_drive_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["drive", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return args.fn(args)
-    except CosimError as exc:
-        print(f"cosim: error: {exc}", file=sys.stderr)
-        return 2
+    return cosim_main(["drive", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

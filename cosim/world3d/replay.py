@@ -21,7 +21,6 @@ MP4 goes through ``imageio-ffmpeg`` (the optional extra ``cosim[video]``), which
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -416,17 +415,10 @@ def render_log(log_path: str | Path, out: str | Path | None = None, frames_dir: 
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m cosim.world3d.replay`` (the same as ``cosim render`` once the CLI wires it)."""
-    from cosim.world3d.cli import add_render_parser
+    """``python -m cosim.world3d.replay``: the same as ``cosim render``."""
+    from cosim.cli import main as cosim_main
 
-    parser = argparse.ArgumentParser(prog="cosim")
-    add_render_parser(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(["render", *(sys.argv[1:] if argv is None else argv)])
-    try:
-        return args.fn(args)
-    except CosimError as exc:
-        print(f"cosim: error: {exc}", file=sys.stderr)
-        return 2
+    return cosim_main(["render", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":
