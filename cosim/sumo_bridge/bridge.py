@@ -62,6 +62,7 @@ class SumoBridge:
         self.step_s = step_s
         self.open = True
         self._lane_codes: dict[str, tuple[int, int]] = {}
+        self._getters = self._fast_getters()
         self.ego_id: str | None = None
         self.ego_on_road = True
         self._unmapped_steps = 0
@@ -114,14 +115,19 @@ class SumoBridge:
         ids = [v for v in world.ids if v is not None]
         if not ids:
             return
+        get = self._getters
         slots = np.fromiter((world.slot_of[v] for v in ids), dtype=np.intp, count=len(ids))
-        xy = np.array(list(map(veh.getPosition, ids)), dtype=np.float64)
+        xy = np.array(list(map(get["position"], ids)), dtype=np.float64)
         world.x_m[slots] = xy[:, 0]
         world.y_m[slots] = xy[:, 1]
-        world.heading_deg[slots] = np.fromiter(map(veh.getAngle, ids), np.float64, len(ids))
-        world.speed_mps[slots] = np.fromiter(map(veh.getSpeed, ids), np.float64, len(ids))
-        world.accel_mps2[slots] = np.fromiter(map(veh.getAcceleration, ids), np.float64, len(ids))
-        lanes = list(map(veh.getLaneID, ids))
+        world.heading_deg[slots] = np.fromiter(map(get["angle"], ids), np.float64, len(ids))
+        speed = np.fromiter(map(get["speed"], ids), np.float64, len(ids))
+        # SUMO's acceleration is the speed change over the step: derived here instead of one more getter
+        # per vehicle (a vehicle that departed this step has no previous speed: 0)
+        fresh = world.depart_step[slots] == world.step
+        world.accel_mps2[slots] = np.where(fresh, 0.0, (speed - world.speed_mps[slots]) / self.step_s)
+        world.speed_mps[slots] = speed
+        lanes = list(map(get["lane"], ids))
         cache = self._lane_codes
         codes = [cache.get(lane) or self._lane_code(world, lane) for lane in lanes]
         world.edge_code[slots] = [c[0] for c in codes]
@@ -131,6 +137,14 @@ class SumoBridge:
             world.lane_pos_m[ego] = veh.getLanePosition(self.ego_id)
             world.lateral_offset_m[ego] = veh.getLateralLanePosition(self.ego_id)
             world.signals[ego] = veh.getSignals(self.ego_id)
+
+    def _fast_getters(self) -> dict:
+        """Per-vehicle getters; with libsumo its compiled functions directly, skipping the Python wrapper
+        around each (a fifth of the read time at 1000 vehicles). TraCI keeps its own methods."""
+        veh = self.sumo.vehicle
+        names = {"position": "getPosition", "angle": "getAngle", "speed": "getSpeed", "lane": "getLaneID"}
+        native = getattr(self.sumo, "_libsumo", None)
+        return {k: getattr(native, f"vehicle_{m}", None) or getattr(veh, m) for k, m in names.items()}
 
     def _lane_code(self, world: World, lane: str) -> tuple[int, int]:
         if not lane:
