@@ -31,7 +31,7 @@ BENCHES = [
         ["bench.bench_experiment"],
     ),
     ("sweep", "Sweep throughput, local pool vs Ray (issue: sweeps)", ["bench.bench_sweep"]),
-    ("render", "3D view frame rate (issue: 3D view)", ["bench.bench_render"]),
+    ("render", "3D view frame rate (issue: 3D view)", ["bench.bench_render", "--seconds", "20"]),
 ]
 
 
