@@ -27,8 +27,8 @@ bench: $(STAMP)
 	$(PY) -m bench.run_all
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check cosim tests bench
-	$(VENV)/bin/ruff format --check cosim tests bench
+	$(VENV)/bin/ruff check cosim tests bench examples
+	$(VENV)/bin/ruff format --check cosim tests bench examples
 
 clean:
 	rm -rf $(VENV) .cache results .pytest_cache

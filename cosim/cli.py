@@ -166,9 +166,14 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--jobs", type=int, help="parallel processes (default: cores)")
     ex.add_argument("--out", help="output directory (default results/<name>)")
     ex.add_argument("--quiet", action="store_true")
-    ex.add_argument("--participant-driver", choices=("keyboard", "wheel"),
-                    help="a person drives each participant's run in the 3D view (one after the other)")
-    ex.add_argument("--clip", action="store_true", help="also render P1's system-A and system-B phases to clip.mp4")
+    ex.add_argument(
+        "--participant-driver",
+        choices=("keyboard", "wheel"),
+        help="a person drives each participant's run in the 3D view (one after the other)",
+    )
+    ex.add_argument(
+        "--clip", action="store_true", help="also render P1's system-A and system-B phases to clip.mp4"
+    )
     ex.set_defaults(fn=_experiment)
 
     cp = sub.add_parser("compare", help="compare two runs' time-gap traces (exit 1 when outside tolerance)")
