@@ -48,6 +48,10 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
     a = log.topics["/adas/state"]
     e = log.topics["/ego/state"]
     rx = log.topics.get("/vanet/rx")
+    ev = log.topics.get("/events", {})
+    ego_collision_t = (
+        ev["t_s"][(ev["kind"] == "collision") & (ev["vehicle"] == "ego")] if "kind" in ev else np.zeros(0)
+    )
     out = []
     for phase in dict.fromkeys(cols["phase"]):
         m = cols["phase"] == phase
@@ -61,9 +65,8 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
         speed = e["physics_speed_mps"][em].astype(float) if "physics_speed_mps" in e else e["speed_mps"][em]
         es = np.interp(a["t_s"][am], e["t_s"][em], speed) if em.any() else np.zeros(am.sum())
         closing = es - ls
-        ttc = np.where(
-            (closing > 0.1) & np.isfinite(gap), gap / np.where(closing > 0.1, closing, 1.0), np.inf
-        )
+        ok = (closing > 0.1) & np.isfinite(gap) & (gap > 0.0)  # overlaps are collisions, counted below
+        ttc = np.where(ok, gap / np.where(ok, closing, 1.0), np.inf)
         accel = np.gradient(speed, e["t_s"][em]) if em.sum() > 2 else np.zeros(0)
         pdr = math.nan
         if rx is not None and "b_station" in a:
@@ -82,6 +85,7 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
             "share_below_1s": _r(np.mean(tg[following] < 1.0)) if following.any() else None,
             "warnings": _onsets(warn == "warning"), "advisories": _onsets(warn == "advisory"),
             "hard_braking_events": _onsets(accel < HARD_BRAKE_MPS2),
+            "ego_collisions": _onsets(np.isin(np.round(a["t_s"][am], 3), np.round(ego_collision_t, 3))),
             "min_ttc_s": _r(np.min(ttc)) if np.isfinite(ttc).any() else None,
             "v2v_pdr_to_leader": _r(pdr) if math.isfinite(pdr) else None,
         })  # fmt: skip

@@ -71,7 +71,7 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
     stats["wall_s"] = round(time.perf_counter() - t_wall, 1)
     if progress is not None:
         progress[part.id] = 1.0
-    log = read(pdir / "run.mcap", topics=["/adas/state", "/ego/state", "/vanet/rx"])
+    log = read(pdir / "run.mcap", topics=["/adas/state", "/ego/state", "/vanet/rx", "/events"])
     cols = timegap_columns(log, start)
     write_timegap_csv(cols, pdir / "timegap.csv")
     title = f"{exp.name}: participant {part.id} ({part.profile}), order {' > '.join(p.name for p in order)}"
@@ -140,7 +140,7 @@ def across_participants(results: list[dict]) -> list[dict]:
     for system, phs in by_system.items():
         row = {"system": system, "n": len(phs)}
         for key in ("time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
-                    "hard_braking_events", "min_ttc_s", "v2v_pdr_to_leader"):  # fmt: skip
+                    "hard_braking_events", "ego_collisions", "min_ttc_s", "v2v_pdr_to_leader"):  # fmt: skip
             vals = [p[key] for p in phs if p.get(key) is not None]
             row[key] = round(sum(vals) / len(vals), 3) if vals else None
         rows.append(row)
@@ -149,7 +149,8 @@ def across_participants(results: list[dict]) -> list[dict]:
 
 _COLS = [("phase", "phase"), ("system", "system"), ("time_gap_mean_s", "mean TG [s]"), ("time_gap_sd_s", "SD [s]"),
          ("share_below_2s", "< 2 s"), ("share_below_1s", "< 1 s"), ("warnings", "warnings"),
-         ("hard_braking_events", "hard brakes"), ("min_ttc_s", "min TTC [s]"), ("v2v_pdr_to_leader", "PDR leader"),
+         ("hard_braking_events", "hard brakes"), ("ego_collisions", "collisions"), ("min_ttc_s", "min TTC [s]"),
+         ("v2v_pdr_to_leader", "PDR leader"),
          ("following_share", "following")]  # fmt: skip
 
 
@@ -170,10 +171,10 @@ def summary_markdown(summary: dict) -> str:
             lines.append("| " + " | ".join(_cell(ph.get(k)) for k, _ in _COLS) + " |")
         lines.append("")
     lines += ["## Across participants (mean per system)", "",
-              "| system | n | mean TG [s] | SD [s] | < 2 s | < 1 s | warnings | hard brakes | min TTC [s] | PDR leader |",
-              "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+              "| system | n | mean TG [s] | SD [s] | < 2 s | < 1 s | warnings | hard brakes | collisions | min TTC [s] | PDR leader |",
+              "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for row in summary["across"]:
         lines.append(f"| {row['system']} | {row['n']} | " + " | ".join(_cell(row[k]) for k in (
             "time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
-            "hard_braking_events", "min_ttc_s", "v2v_pdr_to_leader")) + " |")  # fmt: skip
+            "hard_braking_events", "ego_collisions", "min_ttc_s", "v2v_pdr_to_leader")) + " |")  # fmt: skip
     return "\n".join(lines) + "\n"
