@@ -20,6 +20,7 @@ PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
 CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
+ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 )
@@ -299,10 +300,15 @@ class EgoController:
             return
         st = self.car.state()
         x, y, angle = st.to_sumo(self.origin)
-        ev = sim.bridge.write_ego(x, y, angle, st.speed_mps)
+        p = self.percept
+        slot = sim.world.slot_of.get(EGO_ID)
+        # on its own path and mapped to a lane by SUMO: no need to search the network for the road
+        suspicious = (
+            p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or sim.world.edge_code[slot] < 0
+        )
+        ev = sim.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious)
         if ev:
             sim.events.append(ev)
-        p = self.percept
         sim.outputs["ego_log"] = {
             "throttle": round(self.controls.throttle, 4), "brake": round(self.controls.brake, 4),
             "steer": round(self.controls.steer, 4), "physics_speed_mps": round(st.speed_mps, 4),

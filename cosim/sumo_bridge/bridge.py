@@ -184,21 +184,24 @@ class SumoBridge:
             veh.setLaneChangeMode(EGO_ID, 0)
 
     def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, edge_hint: str = "",
-                  lane_hint: int = -1) -> SumoEvent | None:  # fmt: skip
+                  lane_hint: int = -1, verify_on_road: bool = True) -> SumoEvent | None:  # fmt: skip
         """Place the ego (front-bumper pose) for the next SUMO step and tell followers its speed.
 
         keepRoute=2 lets SUMO map the pose onto any lane (the driver may leave the route); a pose farther
         than ``matchThreshold`` from every lane puts the ego off-road, which ``step`` reports as an event.
+        ``verify_on_road`` looks that up first (a search over all lanes, ~5 ms): the caller skips it while
+        the ego is plainly on its path.
         """
         veh, sim = self.sumo.vehicle, self.sumo.simulation
         try:
-            # far from every lane: keep the SUMO twin where it last was on the road (SUMO is not meant to
-            # carry a vehicle off the network for long) and let step() report the ego as off-road
-            edge, pos, lane = sim.convertRoad(x_m, y_m, False, "passenger")
-            rx, ry = sim.convert2D(edge, pos, lane)
-            self._pose_off_road = math.hypot(rx - x_m, ry - y_m) > MATCH_THRESHOLD_M
-            if self._pose_off_road:
-                return None
+            if verify_on_road or self._pose_off_road:
+                # far from every lane: keep the SUMO twin where it last was on the road (SUMO is not meant
+                # to carry a vehicle off the network for long) and let step() report the ego as off-road
+                edge, pos, lane = sim.convertRoad(x_m, y_m, False, "passenger")
+                rx, ry = sim.convert2D(edge, pos, lane)
+                self._pose_off_road = math.hypot(rx - x_m, ry - y_m) > MATCH_THRESHOLD_M
+                if self._pose_off_road:
+                    return None
             veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=2,
                          matchThreshold=MATCH_THRESHOLD_M)  # fmt: skip
             veh.setPreviousSpeed(EGO_ID, max(0.0, speed_mps))
