@@ -67,6 +67,7 @@ class SumoBridge:
         self.ego_on_road = True
         self._unmapped_steps = 0
         self._pose_off_road = False
+        self._colliding: set[tuple[str, str]] = set()
 
     def close(self) -> None:
         if self.open:
@@ -89,10 +90,13 @@ class SumoBridge:
             world.length_m[slot] = veh.getLength(vid)
             world.width_m[slot] = veh.getWidth(vid)
         events = [SumoEvent("teleport", v) for v in sim.getStartingTeleportIDList()]
-        for c in sim.getCollisions():
-            events.append(
-                SumoEvent("collision", c.collider, f"with {c.victim} ({c.type}) on {c.lane}", c.colliderSpeed)
-            )
+        colliding = set()
+        for c in sim.getCollisions():  # SUMO repeats a collision every step the two overlap: report it once
+            colliding.add((c.collider, c.victim))
+            if (c.collider, c.victim) not in self._colliding:
+                detail = f"with {c.victim} ({c.type}) on {c.lane}"
+                events.append(SumoEvent("collision", c.collider, detail, c.colliderSpeed))
+        self._colliding = colliding
         self._read(world)
         ego = world.slot_of.get(self.ego_id) if self.ego_id else None
         if ego is not None:  # keepRoute=2 places an ego that left the road off-lane (empty lane id)
