@@ -175,11 +175,39 @@ class PathLoss:
         return float(d[ok[-1]] + 0.25) if ok.size else 1.0
 
 
-def pseudo_angle(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def pseudo_angle(x: np.ndarray, y: np.ndarray, out=None, tmp=None, neg=None) -> np.ndarray:
     """A stand-in for the direction angle without trigonometry: p in [0, 4), strictly increasing
-    counter-clockwise from -90 deg (p = 0: -y, 1: +x, 2: +y, 3: -x). Keeps the input dtype."""
-    q = y / (np.abs(x) + np.abs(y) + x.dtype.type(1e-9))
-    return 1.0 + q + (x < 0) * (2.0 - 2.0 * q)
+    counter-clockwise from -90 deg (p = 0: -y, 1: +x, 2: +y, 3: -x). Keeps the input dtype.
+
+    out, tmp (float) and neg (bool), of the broadcast shape, are optional work arrays (out is returned)."""
+    # in place, but the same operations in the same order as 1 + q + (x < 0) (2 - 2 q): bit-identical
+    s = np.abs(x, out=out)
+    t = np.abs(y, out=tmp)
+    s += t
+    s += x.dtype.type(1e-9)
+    q = np.divide(y, s, out=s)
+    b = np.multiply(q, -2.0, out=t)
+    b += 2.0
+    b *= np.less(x, 0, out=neg)
+    q += 1.0
+    q += b
+    return q
+
+
+class _Scratch:
+    """Work arrays reused from call to call: a fresh multi-MB temporary costs more in page faults than
+    the arithmetic done in it. ``scratch(name, shape, dtype)`` is valid until the next call with that name."""
+
+    def __init__(self):
+        self._arrays: dict[tuple[str, np.dtype], np.ndarray] = {}
+
+    def __call__(self, name: str, shape: tuple[int, ...], dtype) -> np.ndarray:
+        n = math.prod(shape)
+        key = (name, np.dtype(dtype))
+        a = self._arrays.get(key)
+        if a is None or a.size < n:
+            a = self._arrays[key] = np.empty(max(n, 16), dtype=dtype)
+        return a[:n].reshape(shape)
 
 
 def pseudo_angle_direction(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -326,7 +354,12 @@ class PolarShadowing:
         )
         row_bytes = n_bins * 4 if model == "los" else n_bins * (self.k * 2 + 1)
         self.max_rows = max(1024, int(cache_mb * 1e6 // (row_bytes + 24)))
-        self.index: dict[int, int] = {}
+        # sorted map keys and their pool rows; lattice cells (keys without the inside bit) touching a footprint
+        self._keys = np.zeros(0, dtype=np.int64)
+        self._key_rows = np.zeros(0, dtype=np.int64)
+        self._cell_keys = np.zeros(0, dtype=np.int64)
+        self._cell_touched = np.zeros(0, dtype=bool)
+        self._scratch = _Scratch()
         self.n_rows = 0
         self.builds = 0  # maps built so far (diagnostics)
         self.flushes = 0
@@ -360,7 +393,8 @@ class PolarShadowing:
         self._rows_cap = rows
 
     def _flush(self) -> None:
-        self.index.clear()
+        self._keys = np.zeros(0, dtype=np.int64)
+        self._key_rows = np.zeros(0, dtype=np.int64)
         self.n_rows = 0
         self.flushes += 1
 
@@ -498,6 +532,29 @@ class PolarShadowing:
         self.cross_d[rows] = d.reshape(len(rows), nb, k)
         self.saturated[rows] = sat.reshape(len(rows), nb)
 
+    def _inside(self, tx_xy: np.ndarray, cell_key: np.ndarray) -> np.ndarray:
+        """Whether each point is inside a footprint; the point test only in lattice cells that touch one."""
+        known = np.zeros(cell_key.size, dtype=bool)
+        if self._cell_keys.size:
+            pos = np.minimum(np.searchsorted(self._cell_keys, cell_key), self._cell_keys.size - 1)
+            known = self._cell_keys[pos] == cell_key
+        if not known.all():
+            new, first = np.unique(cell_key[~known], return_index=True)
+            ij = np.floor(tx_xy[~known][first] / self.lattice_m)
+            boxes = shapely.box(*(ij * self.lattice_m).T, *((ij + 1.0) * self.lattice_m).T)
+            touched = np.zeros(new.size, dtype=bool)
+            if len(self.b):
+                touched[self.b.tree.query(boxes, predicate="intersects")[0]] = True
+            at = np.searchsorted(self._cell_keys, new)
+            self._cell_keys = np.insert(self._cell_keys, at, new)
+            self._cell_touched = np.insert(self._cell_touched, at, touched)
+        pos = np.searchsorted(self._cell_keys, cell_key)
+        inside = np.zeros(len(tx_xy), dtype=bool)
+        test = np.flatnonzero(self._cell_touched[pos])
+        if test.size:
+            inside[test] = self.b.containing_count(tx_xy[test]) > 0
+        return inside
+
     def rows_for(self, tx_xy: np.ndarray) -> np.ndarray:
         """Pool rows of the visibility maps for these transmitter positions (T,2), building missing maps.
 
@@ -505,9 +562,10 @@ class PolarShadowing:
         """
         tx_xy = np.asarray(tx_xy, dtype=np.float64)
         ij = np.floor(tx_xy / self.lattice_m).astype(np.int64)
-        inside = self.b.containing_count(tx_xy) > 0
-        keys = (((ij[:, 0] + (1 << 30)) << 32) | ((ij[:, 1] + (1 << 30)) << 1)) | inside
-        rows = np.array([self.index.get(k, -1) for k in keys.tolist()], dtype=np.int64)
+        cell_key = ((ij[:, 0] + (1 << 30)) << 32) | ((ij[:, 1] + (1 << 30)) << 1)
+        keys = cell_key | self._inside(tx_xy, cell_key)
+        pos = np.minimum(np.searchsorted(self._keys, keys), max(self._keys.size - 1, 0))
+        rows = np.where(self._keys[pos] == keys, self._key_rows[pos], -1) if self._keys.size else keys * 0 - 1
         missing = rows < 0
         if missing.any():
             new_keys, first, inv = np.unique(keys[missing], return_index=True, return_inverse=True)
@@ -521,13 +579,49 @@ class PolarShadowing:
                 self._grow(min(self.max_rows, max(2 * self._rows_cap, self.n_rows + n_new)))
             new_rows = np.arange(self.n_rows, self.n_rows + n_new)
             self.n_rows += n_new
-            for key, row in zip(new_keys.tolist(), new_rows.tolist(), strict=True):
-                self.index[key] = row
-            xy, n0 = self._representatives(ij[missing][first], inside[missing][first])
+            at = np.searchsorted(self._keys, new_keys)
+            self._keys, self._key_rows = (
+                np.insert(self._keys, at, new_keys),
+                np.insert(self._key_rows, at, new_rows),
+            )
+            xy, n0 = self._representatives(ij[missing][first], (new_keys & 1).astype(bool))
             self._build(new_rows, xy, n0)
             self.builds += n_new
-            rows[missing] = new_rows[inv]
+            rows[missing] = new_rows[inv.reshape(-1)]
         return rows
+
+    def _lookup(
+        self, rows: np.ndarray, dx: np.ndarray, dy: np.ndarray, scratch: _Scratch | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Squared distance and flat (row, bin) cell of receivers at (dx, dy) [m] (float32) from the ray
+        origins of pool ``rows``; any shapes that broadcast: (L,) links or (T, 1) x (T, M). The results
+        live in ``scratch`` when given (valid until its next use)."""
+        shape = np.broadcast_shapes(dx.shape, dy.shape)
+        buf = scratch or _Scratch()
+        r2 = np.multiply(dx, dx, out=buf("r2", shape, np.float32))
+        t = np.multiply(dy, dy, out=buf("t", shape, np.float32))
+        r2 += t
+        p = pseudo_angle(dx, dy, out=buf("p", shape, np.float32), tmp=t, neg=buf("neg", shape, np.bool_))
+        p *= np.float32(1.0 / self.bin_w)
+        bins = buf("bins", shape, np.int32)
+        np.copyto(bins, p, casting="unsafe")
+        np.minimum(bins, self.n_bins - 1, out=bins)
+        bins += (rows * self.n_bins).astype(np.int32)  # < 2^31: the pool holds at most ~2^26 / 4 maps
+        return r2, bins
+
+    def blocked_matrix(self, tx_xy: np.ndarray, rx_x: np.ndarray, rx_y: np.ndarray) -> np.ndarray:
+        """Line-of-sight model on every (transmitter, receiver) pair: (T, M) bool, True = blocked."""
+        if self.model != "los":
+            raise ValueError("blocked_matrix is the line-of-sight model only")
+        tx_rows = self.rows_for(tx_xy)
+        rep = self.rep_xy[tx_rows].astype(np.float32)
+        shape = (len(tx_rows), len(rx_x))
+        buf = self._scratch
+        dx = np.subtract(rx_x[None, :], rep[:, 0:1], out=buf("dx", shape, np.float32))
+        dy = np.subtract(rx_y[None, :], rep[:, 1:2], out=buf("dy", shape, np.float32))
+        r2, cell = self._lookup(tx_rows[:, None], dx, dy, buf)
+        depth = np.take(self.depth2.reshape(-1), cell, out=dx, mode="clip")  # cells are valid; no buffering
+        return np.greater(r2, depth)
 
     def loss_db(
         self, tx_xy: np.ndarray, link_tx: np.ndarray, rx_x: np.ndarray, rx_y: np.ndarray
@@ -537,14 +631,11 @@ class PolarShadowing:
         if n == 0:
             return np.zeros(0)
         tx_rows = self.rows_for(tx_xy)
-        rows = tx_rows[link_tx].astype(np.int32)
+        rows = tx_rows[link_tx]
         rep = self.rep_xy[tx_rows].astype(np.float32)
         dx = rx_x.astype(np.float32, copy=False) - rep[:, 0][link_tx]
         dy = rx_y.astype(np.float32, copy=False) - rep[:, 1][link_tx]
-        r2 = dx * dx + dy * dy
-        bins = (pseudo_angle(dx, dy) * np.float32(1.0 / self.bin_w)).astype(np.int32)
-        np.minimum(bins, self.n_bins - 1, out=bins)
-        cell = rows * np.int32(self.n_bins) + bins
+        r2, cell = self._lookup(rows, dx, dy)
         if self.model == "los":
             return np.where(r2 > self.depth2.reshape(-1)[cell], np.float32(np.inf), np.float32(0.0))
         r = np.sqrt(r2)
@@ -589,62 +680,140 @@ class LinkBatch:
     n_evaluated: int = 0  # links evaluated, including interference-only ones
 
 
-def _neighbour_pairs(
-    tx_xy: np.ndarray, rx_x: np.ndarray, rx_y: np.ndarray, radius: float, tx_rx: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """All (tx, rx) index pairs closer than radius, without tx_rx[t] (the transmitter itself), sorted by
-    tx then rx, and their squared distances [m^2].
+@dataclass
+class _Block:
+    """Dense (transmission x receiver) matrices of one block of a window; every mask is (T, M) bool."""
 
-    A dense T x M distance test while that is small (fastest on a city map, where most stations are in
-    range of each other), a uniform grid of cell size radius beyond.
+    t: np.ndarray | None  # transmissions of the block (rows), None = all
+    m: np.ndarray | None  # receivers of the block (columns, ascending), None = all
+    d2: np.ndarray  # float32 squared distance [m^2]
+    logged: np.ndarray  # reported: within the communication range, not the transmitter itself
+    above: np.ndarray  # path loss alone leaves the power at or above the sensitivity
+    reach: np.ndarray  # power after shadowing at or above the sensitivity
+    collided: np.ndarray  # the receiver transmits in the same slot
+    damaged: np.ndarray | None  # same-slot interference (None: no slot has two transmissions)
+    ok: np.ndarray  # decoded
+    p0: np.ndarray | None  # float32 power before shadowing [dBm], when computed for every pair
+    loss: np.ndarray | None  # shadowing loss [dB] (None: ``blocked`` or no shadowing)
+    blocked: np.ndarray | None  # line of sight blocked (line-of-sight fast path)
+
+
+class Links:
+    """Outcomes of one window's transmissions, kept as dense blocks of (transmission x receiver) masks.
+
+    Per-link arrays are made only for the links asked for: the decoded ones (slot maps, OBU tables), one
+    receiver's (the log's default) or all reported ones (``batch``).
     """
-    n_tx, n_rx = len(tx_xy), len(rx_x)
-    e = np.zeros(0, dtype=np.int64)
-    if n_tx == 0 or n_rx == 0:
-        return e, e, np.zeros(0, dtype=rx_x.dtype)
-    r2 = rx_x.dtype.type(radius * radius)
-    if n_tx * n_rx <= 4_000_000:
-        dx = rx_x[None, :] - tx_xy[:, 0:1]  # (T, M)
-        d2 = dx * dx
-        dy = rx_y[None, :] - tx_xy[:, 1:2]
-        d2 += dy * dy
-        mask = d2 <= r2
-        mask[np.arange(n_tx), tx_rx] = False
-        flat = np.flatnonzero(mask)
-        ti = flat // n_rx
-        return ti, flat - ti * n_rx, d2.reshape(-1)[flat]
-    rx_xy = np.stack([rx_x, rx_y], axis=1).astype(np.float64)
-    tx_xy = tx_xy.astype(np.float64)
-    origin = np.minimum(tx_xy.min(axis=0), rx_xy.min(axis=0))
-    cell = max(radius, 1.0)
-    rc = np.floor((rx_xy - origin) / cell).astype(np.int64)
-    tc = np.floor((tx_xy - origin) / cell).astype(np.int64)
-    width = int(max(rc[:, 1].max(), tc[:, 1].max())) + 3
-    rkey = (rc[:, 0] + 1) * width + (rc[:, 1] + 1)
-    order = np.argsort(rkey, kind="stable")
-    skey = rkey[order]
-    offs = np.array([dx * width + dy for dx in (-1, 0, 1) for dy in (-1, 0, 1)], dtype=np.int64)
-    tkey = ((tc[:, 0] + 1) * width + (tc[:, 1] + 1))[:, None] + offs[None, :]  # (T, 9)
-    lo = np.searchsorted(skey, tkey, side="left").ravel()
-    hi = np.searchsorted(skey, tkey, side="right").ravel()
-    cnt = hi - lo
-    total = int(cnt.sum())
-    if total == 0:
-        return e, e, np.zeros(0, dtype=rx_x.dtype)
-    ti = np.repeat(np.repeat(np.arange(n_tx), 9), cnt)
-    pos = np.repeat(lo - (np.cumsum(cnt) - cnt), cnt) + np.arange(total)
-    ri = order[pos]
-    dx = rx_x[ri] - tx_xy[ti, 0].astype(rx_x.dtype)
-    dy = rx_y[ri] - tx_xy[ti, 1].astype(rx_x.dtype)
-    d2 = dx * dx + dy * dy
-    close = (d2 <= r2) & (ri != tx_rx[ti])
-    ti, ri, d2 = ti[close], ri[close], d2[close]
-    order2 = np.lexsort((ri, ti))  # same order as the dense path
-    return ti[order2], ri[order2], d2[order2]
+
+    def __init__(self, aether: Aether, n_tx: int, n_rx: int, blocks: list[_Block], n_evaluated: int):
+        self.aether = aether
+        self.n_tx, self.n_rx = n_tx, n_rx
+        self.blocks = blocks
+        self.n_evaluated = n_evaluated
+
+    @staticmethod
+    def _global(b: _Block, tl: np.ndarray, ml: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return (tl if b.t is None else b.t[tl]), (ml if b.m is None else b.m[ml])
+
+    def decoded(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(transmission index, receiver index, distance [m] float32) of every decoded message."""
+        ti, ri, d = [], [], []
+        for b in self.blocks:
+            flat = np.flatnonzero(b.ok)
+            d.append(np.sqrt(b.d2.reshape(-1)[flat]))
+            tl = flat // b.ok.shape[1]
+            t, m = self._global(b, tl, flat - tl * b.ok.shape[1])
+            ti.append(t)
+            ri.append(m)
+        if not self.blocks:
+            e = np.zeros(0, dtype=np.intp)
+            return e, e, np.zeros(0, dtype=np.float32)
+        ti, ri, d = np.concatenate(ti), np.concatenate(ri), np.concatenate(d)
+        if len(self.blocks) > 1:  # the same (tx, rx) order as a single block
+            order = np.lexsort((ri, ti))
+            ti, ri, d = ti[order], ri[order], d[order]
+        return ti, ri, d
+
+    def batch(self, receivers: np.ndarray | None = None) -> LinkBatch:
+        """Every reported link (or those of the receiver indices ``receivers``), sorted by tx then rx."""
+        parts = []
+        for b in self.blocks:
+            logged = b.logged
+            cols = None
+            if receivers is not None:
+                want = np.unique(np.asarray(receivers, dtype=np.intp))
+                if b.m is None:
+                    cols = want
+                else:
+                    pos = np.minimum(np.searchsorted(b.m, want), max(b.m.size - 1, 0))
+                    cols = pos[(b.m.size > 0) & (b.m[pos] == want)] if b.m.size else pos[:0]
+                logged = logged[:, cols]
+            tl, cl = np.nonzero(logged)
+            ml = cl if cols is None else cols[cl]
+            parts.append((b, tl, ml))
+        ti = [self._global(b, tl, ml)[0] for b, tl, ml in parts]
+        ri = [self._global(b, tl, ml)[1] for b, tl, ml in parts]
+        cols = [self._link_values(b, tl, ml) for b, tl, ml in parts]
+        if not parts:
+            e = np.zeros(0, dtype=np.int32)
+            return LinkBatch(e, e, np.zeros(0, np.float32), np.zeros(0, np.float32), np.zeros(0, np.uint8))
+        ti, ri = np.concatenate(ti), np.concatenate(ri)
+        d, pw, outcome = (np.concatenate([c[k] for c in cols]) for k in range(3))
+        if len(parts) > 1:
+            order = np.lexsort((ri, ti))
+            ti, ri, d, pw, outcome = ti[order], ri[order], d[order], pw[order], outcome[order]
+        return LinkBatch(
+            tx=ti.astype(np.int32),
+            rx=ri.astype(np.int32),
+            distance_m=d,
+            power_dbm=pw,
+            outcome=outcome,
+            n_evaluated=self.n_evaluated,
+        )
+
+    def _link_values(self, b: _Block, tl: np.ndarray, ml: np.ndarray) -> tuple[np.ndarray, ...]:
+        """(distance [m], power after shadowing [dBm], outcome) of the block's links (tl, ml)."""
+        d2 = b.d2[tl, ml]
+        if b.p0 is not None:
+            p0 = b.p0[tl, ml]
+        else:
+            a = self.aether
+            p0 = np.float32(a.p.tx_power_dbm) - a.path_loss.loss_db_from_d2(d2)
+        if b.loss is not None:
+            pw = (p0 - b.loss[tl, ml]).astype(np.float32)
+        elif b.blocked is not None:
+            pw = np.where(b.blocked[tl, ml], np.float32(-np.inf), p0)
+        else:
+            pw = p0
+        reach = b.reach[tl, ml]
+        damaged = b.damaged[tl, ml] if b.damaged is not None else np.zeros(tl.size, dtype=bool)
+        outcome = np.where(damaged, DAMAGED, OK).astype(np.uint8)
+        outcome[b.collided[tl, ml] & reach] = COLLIDED
+        outcome[~reach] = SHADOWED
+        outcome[~b.above[tl, ml]] = BELOW_SENSITIVITY
+        return np.sqrt(d2), pw.astype(np.float32, copy=False), outcome
+
+
+def _slot_sums(rows: np.ndarray, starts: np.ndarray, dtype) -> np.ndarray:
+    """Sums of consecutive row runs (run i starts at row starts[i]) in row order, like bincount's; far
+    faster than np.add.reduceat along axis 0 when most runs are a single row."""
+    total = rows[starts].astype(dtype)
+    size = np.diff(np.r_[starts, len(rows)])
+    for j in range(1, int(size.max())):
+        runs = np.flatnonzero(size > j)
+        total[runs] += rows[starts[runs] + j]
+    return total
 
 
 class Aether:
-    """Decides, for every transmission of a window, each receiver's outcome."""
+    """Decides, for every transmission of a window, each receiver's outcome.
+
+    Links are evaluated as dense (transmission x receiver) matrices: on a city map most stations are in
+    range of each other, and broadcasting beats per-link gathers. Above ``max_cells`` pairs the receivers
+    are split into grid cells of the link range, each with only the transmitters that can reach it.
+    """
+
+    max_cells = 4_000_000
 
     def __init__(self, params: ChannelParams, buildings: Sequence[shapely.Polygon] | Buildings):
         self.p = params
@@ -680,6 +849,20 @@ class Aether:
                 params.per_meter_db,
                 max_loss,
             )
+        # links beyond the communication range only matter as interference, and two-ray has nulls inside
+        self._general = self.link_range_m > self.comm_range_m or params.path_loss == "two_ray"
+        # paper rule with a 0 / inf shadowing loss and a monotone path loss: the power is needed only for
+        # the links logged, and "above the sensitivity" is a distance test (see _above_sensitivity)
+        self._fast = (
+            not self._general
+            and params.interference == "paper"
+            and (isinstance(self.shadow, NoShadowing) or params.shadowing == "los")
+            and self.comm_range_m > 2.0
+        )
+        # squared distances clearly inside / outside the range; the power is computed between them
+        self._d2_band = (self.comm_range_m**2 * (1.0 - 1e-3), self.comm_range_m**2 * (1.0 + 1e-3))
+        self._d2_threshold = None  # exact float32 threshold, found on first use (False: use the band)
+        self._scratch = _Scratch()
 
     def evaluate(
         self,
@@ -689,6 +872,17 @@ class Aether:
         rx_xy: np.ndarray,
         rx_station: np.ndarray,
     ) -> LinkBatch:
+        """Outcomes of one window's transmissions, every reported link (see ``links``)."""
+        return self.links(tx_xy, tx_station, tx_group, rx_xy, rx_station).batch()
+
+    def links(
+        self,
+        tx_xy: np.ndarray,
+        tx_station: np.ndarray,
+        tx_group: np.ndarray,
+        rx_xy: np.ndarray,
+        rx_station: np.ndarray,
+    ) -> Links:
         """Outcomes of one window's transmissions.
 
         tx_xy (T,2) [m], tx_station (T,) station ids, tx_group (T,) int: same value = same slot;
@@ -696,69 +890,174 @@ class Aether:
         must be among them). A transmitter never receives itself; a receiver transmitting in the same group
         is half-duplex ("collided").
         """
-        p = self.p
         n_tx, n_rx = len(tx_xy), len(rx_xy)
         tx_rx = np.searchsorted(rx_station, tx_station)  # receiver index of each transmitter
         if n_tx and (np.any(tx_rx >= n_rx) or np.any(rx_station[np.minimum(tx_rx, n_rx - 1)] != tx_station)):
             raise ValueError("aether: every transmitting station must be among the receivers")
+        if n_tx == 0 or n_rx == 0:
+            return Links(self, n_tx, n_rx, [], 0)
+        tx_xy = np.asarray(tx_xy, dtype=np.float64)
         # per-link arithmetic in float32: positions to ~1 mm up to 10 km from the origin, and 3-4x faster
         rx_x, rx_y = rx_xy[:, 0].astype(np.float32), rx_xy[:, 1].astype(np.float32)
-        ti, ri, d2 = _neighbour_pairs(tx_xy.astype(np.float32), rx_x, rx_y, self.link_range_m, tx_rx)
-        d = np.sqrt(d2)
-        p0 = np.float32(p.tx_power_dbm) - self.path_loss.loss_db_from_d2(d2)
-        if self.link_range_m > self.comm_range_m or p.path_loss == "two_ray":
-            relevant = p0 >= self.floor_dbm
-            logged = d <= self.comm_range_m
-            keep = relevant | logged
-            ti, ri, d, p0, logged, relevant = (
-                ti[keep],
-                ri[keep],
-                d[keep],
-                p0[keep],
-                logged[keep],
-                relevant[keep],
-            )
-            loss = np.full(ti.size, np.inf, dtype=np.float32)
-            idx = np.flatnonzero(relevant)
-            loss[idx] = self.shadow.loss_db(tx_xy, ti[idx], rx_x[ri[idx]], rx_y[ri[idx]])
-        else:  # every candidate is within the communication range and above the floor
-            logged = None
-            loss = self.shadow.loss_db(tx_xy, ti, rx_x[ri], rx_y[ri])
-        pw = p0 - loss
-        reach = pw >= p.sensitivity_dbm
-        # group ids -> dense 0..G-1 so (receiver, group) tables stay small
         _, gi = np.unique(tx_group, return_inverse=True)
-        n_groups = int(gi.max()) + 1 if gi.size else 80_000
-        link_g = gi[ti]
-        key = ri.astype(np.int64) * n_groups + link_g
+        gi = gi.reshape(-1)
+        blocks, n_eval = [], 0
+        for t, m in self._plan(tx_xy, rx_xy, n_tx, n_rx):
+            if t is not None and t.size == 0:
+                continue
+            if m is None:
+                col = tx_rx if t is None else tx_rx[t]
+            else:
+                pos = np.minimum(np.searchsorted(m, tx_rx[t]), m.size - 1)
+                col = np.where(m[pos] == tx_rx[t], pos, -1)
+            sel = slice(None) if t is None else t
+            cols = slice(None) if m is None else m
+            b, n = self._block(tx_xy[sel], gi[sel], col, rx_x[cols], rx_y[cols])
+            b.t, b.m = t, m
+            blocks.append(b)
+            n_eval += n
+        return Links(self, n_tx, n_rx, blocks, n_eval)
+
+    def _plan(self, tx_xy: np.ndarray, rx_xy: np.ndarray, n_tx: int, n_rx: int):
+        """Blocks (transmissions, receivers) to evaluate densely; None = all."""
+        if n_tx * n_rx <= self.max_cells:
+            yield None, None
+            return
+        cell = max(self.link_range_m, 1.0)
+        key_xy = np.floor(np.asarray(rx_xy, dtype=np.float64) / cell).astype(np.int64)
+        _, inv = np.unique(key_xy, axis=0, return_inverse=True)
+        inv = inv.reshape(-1)
+        order = np.argsort(inv, kind="stable")
+        bounds = np.flatnonzero(np.r_[True, inv[order][1:] != inv[order][:-1], True])
+        margin = self.link_range_m + 1.0  # float32 rounding of the exact test is far below 1 m
+        for a, z in zip(bounds[:-1], bounds[1:], strict=True):
+            m = np.sort(order[a:z])
+            lo, hi = rx_xy[m].min(axis=0), rx_xy[m].max(axis=0)
+            gap = np.maximum(np.maximum(lo - tx_xy, tx_xy - hi), 0.0)
+            yield np.flatnonzero(np.hypot(gap[:, 0], gap[:, 1]) <= margin), m
+
+    def _above_sensitivity(self, d2: np.ndarray, cand: np.ndarray) -> np.ndarray:
+        """p0 >= sensitivity for candidate pairs, from the squared distance alone (the path loss is
+        monotone): one comparison with the exact float32 threshold when the float32 power is monotone around
+        it, else the power computed where the squared distance is within 0.1 % of the range's."""
+        if self._d2_threshold is None:
+            self._d2_threshold = self._exact_d2_threshold()
+        if self._d2_threshold is not False:
+            return d2 <= self._d2_threshold
+        lo, hi = self._d2_band
+        above = d2 <= np.float32(lo)
+        band = np.flatnonzero(cand & ~above & (d2 <= np.float32(hi)))
+        if band.size:
+            above.reshape(-1)[band] = self._p0(d2.reshape(-1)[band]) >= self.p.sensitivity_dbm
+        return above
+
+    def _p0(self, d2: np.ndarray) -> np.ndarray:
+        """Power before shadowing [dBm] (float32) from squared distances."""
+        return np.float32(self.p.tx_power_dbm) - self.path_loss.loss_db_from_d2(d2)
+
+    def _exact_d2_threshold(self):
+        """The largest float32 squared distance whose float32 power reaches the sensitivity, checked on
+        every float32 value of the 0.1 % band around the range (False: not monotone there)."""
+        lo, hi = (np.float32(v) for v in self._d2_band)
+        bits = np.arange(lo.view(np.int32), hi.view(np.int32) + 1, dtype=np.int32)
+        d2 = bits.view(np.float32)  # every float32 in [lo, hi], ascending
+        above = self._p0(d2) >= self.p.sensitivity_dbm
+        k = int(np.count_nonzero(above))
+        if not above[:k].all() or k == 0 or k == d2.size:
+            return False
+        return d2[k - 1]
+
+    def _block(
+        self, tx_xy: np.ndarray, gi: np.ndarray, col: np.ndarray, rx_x: np.ndarray, rx_y: np.ndarray
+    ) -> tuple[_Block, int]:
+        """Dense evaluation of transmissions tx_xy (T,2) with dense group ids gi (T,) at receivers (rx_x,
+        rx_y) (M,) float32; col (T,) the receiver column of each transmitter (-1: not among them)."""
+        p = self.p
+        n_tx, n_rx = len(tx_xy), len(rx_x)
+        tx32 = tx_xy.astype(np.float32)
+        dx = np.subtract(rx_x[None, :], tx32[:, 0:1], out=self._scratch("dx", (n_tx, n_rx), np.float32))
+        d2 = dx * dx
+        dy = np.subtract(rx_y[None, :], tx32[:, 1:2], out=dx)
+        d2 += np.multiply(dy, dy, out=dx)
+        cand = d2 <= np.float32(self.link_range_m * self.link_range_m)
+        own = np.flatnonzero(col >= 0)
+        cand[own, col[own]] = False  # a transmitter never receives itself
+        loss = blocked = p0 = None
+        if self._general:
+            p0 = np.float32(p.tx_power_dbm) - self.path_loss.loss_db_from_d2(d2)
+            relevant = p0 >= self.floor_dbm
+            logged = cand & (np.sqrt(d2) <= self.comm_range_m)
+            keep = cand & (relevant | logged)
+            loss = np.full(d2.shape, np.inf, dtype=np.float32)
+            need = np.flatnonzero(cand & relevant)
+            loss.reshape(-1)[need] = self._sparse_loss(tx_xy, need, n_rx, rx_x, rx_y)
+            pw = p0 - loss
+            above = p0 >= p.sensitivity_dbm
+            reach = keep & (pw >= p.sensitivity_dbm)
+        else:  # every candidate is within the communication range and above the floor
+            logged = keep = cand
+            if isinstance(self.shadow, PolarShadowing) and p.shadowing == "los":
+                blocked = self.shadow.blocked_matrix(tx_xy, rx_x, rx_y)
+            elif not isinstance(self.shadow, NoShadowing):
+                need = np.flatnonzero(cand)
+                vals = self._sparse_loss(tx_xy, need, n_rx, rx_x, rx_y)
+                loss = np.zeros(d2.shape, dtype=vals.dtype)
+                loss.reshape(-1)[need] = vals
+            if self._fast:
+                above = self._above_sensitivity(d2, cand)
+                reach = cand & above
+                if blocked is None and loss is not None:
+                    blocked, loss = np.isinf(loss), None
+                if blocked is not None:
+                    reach &= ~blocked
+                pw = None
+            else:
+                p0 = np.float32(p.tx_power_dbm) - self.path_loss.loss_db_from_d2(d2)
+                if blocked is not None:
+                    pw = np.where(blocked, np.float32(-np.inf), p0)
+                elif loss is not None:
+                    pw = p0 - loss
+                else:  # as p0 minus NoShadowing's float64 zeros
+                    pw = p0.astype(np.float64)
+                above = p0 >= p.sensitivity_dbm
+                reach = cand & (pw >= p.sensitivity_dbm)
+        # slots of the block: rows sorted by group (stable) for per-(slot, receiver) sums
+        order = np.argsort(gi, kind="stable")
+        gs = gi[order]
+        starts = np.flatnonzero(np.r_[True, gs[1:] != gs[:-1]])
+        lg = np.empty(n_tx, dtype=np.intp)
+        lg[order] = np.cumsum(np.r_[False, gs[1:] != gs[:-1]])
+        sorted_rows = bool(np.all(order == np.arange(n_tx)))
         # half duplex: the receiver transmits in the same slot
-        sending = np.zeros(n_rx * n_groups, dtype=bool)
-        sending[tx_rx * n_groups + gi] = True
-        collided = sending[key]
-        # same-slot interference at each (receiver, slot)
+        sending = np.zeros((starts.size, n_rx), dtype=bool)
+        sending[lg[own], col[own]] = True
+        collided = sending[lg]
+        # same-slot interference at each (slot, receiver)
+        damaged = None
         if p.interference == "paper":
-            counts = np.bincount(key[reach], minlength=n_rx * n_groups)
-            damaged = reach & (counts[key] >= 2)
+            if starts.size < n_tx:  # some slot carries two or more transmissions
+                r = reach if sorted_rows else reach[order]
+                multi = _slot_sums(r, starts, np.int32) >= 2
+                damaged = reach & multi[lg]
         else:
             mw = np.power(10.0, np.where(np.isfinite(pw), pw, -300.0) / 10.0)
-            total = np.bincount(key, weights=mw, minlength=n_rx * n_groups)
-            interf = np.maximum(total[key] - mw, 0.0)
+            mw = np.where(keep, mw, 0.0).astype(np.float64)  # bincount over the kept links, as before
+            total = _slot_sums(mw if sorted_rows else mw[order], starts, np.float64)
+            interf = np.maximum(total[lg] - mw, 0.0)
             noise = float(dbm_to_mw(p.noise_dbm))
             with np.errstate(divide="ignore"):
                 sinr_db = 10.0 * np.log10(mw / (interf + noise))
             damaged = reach & (sinr_db < p.capture_threshold_db)
-        outcome = np.where(damaged, DAMAGED, OK).astype(np.uint8)
-        outcome[collided & reach] = COLLIDED
-        outcome[~reach] = SHADOWED
-        outcome[p0 < p.sensitivity_dbm] = BELOW_SENSITIVITY
-        n_eval = int(ti.size)
-        if logged is not None:
-            ti, ri, d, pw, outcome = ti[logged], ri[logged], d[logged], pw[logged], outcome[logged]
-        return LinkBatch(
-            tx=ti.astype(np.int32),
-            rx=ri.astype(np.int32),
-            distance_m=d.astype(np.float32),
-            power_dbm=pw.astype(np.float32),
-            outcome=outcome,
-            n_evaluated=n_eval,
-        )
+        ok = reach & above & ~collided
+        if damaged is not None:
+            ok &= ~damaged
+        b = _Block(None, None, d2, logged, above, reach, collided, damaged, ok, p0, loss, blocked)
+        return b, int(np.count_nonzero(keep))
+
+    def _sparse_loss(
+        self, tx_xy: np.ndarray, flat: np.ndarray, n_rx: int, rx_x: np.ndarray, rx_y: np.ndarray
+    ) -> np.ndarray:
+        """Shadowing loss of the pairs at flat (T x M) positions, through the per-link shadowing API."""
+        ti = flat // n_rx
+        ri = flat - ti * n_rx
+        return self.shadow.loss_db(tx_xy, ti, rx_x[ri], rx_y[ri])

@@ -38,7 +38,7 @@ import numpy as np
 import shapely
 
 from cosim.vanet.cam import CAM_FIELDS, CamGenerator, CamParams, empty_cam_arrays
-from cosim.vanet.channel import OK, Aether, ChannelParams
+from cosim.vanet.channel import Aether, ChannelParams
 from cosim.vanet.obu import ObuParams, ObuTables, ObuView, OwnState, RecordStore
 from cosim.vanet.sotdma import SotdmaMac, SotdmaParams, report_rate
 from cosim.world import World
@@ -250,11 +250,9 @@ class VanetLayer:
         cap = world.capacity
         timing: dict[str, float] = {}
 
-        # 0. deliveries of the previous window become visible
+        # 0. deliveries of the previous window become visible (a receiver replaced since is reset below)
         if self._inbox is not None:
-            rx, snd, seq, rx_sid = self._inbox
-            same = self.station_id[rx] == rx_sid  # the receiver is still the same vehicle
-            self.obu.deliver(rx[same], snd[same], seq[same])
+            self.obu.deliver(*self._inbox)
             self._inbox = None
         # 1. stations
         self._lifecycle(world, g_lo)
@@ -320,18 +318,15 @@ class VanetLayer:
         active = np.flatnonzero(valid)
         st_xy = np.stack([x[active], y[active]], axis=1)
         tx_xy = np.stack([x[tx.station], y[tx.station]], axis=1)
-        links = self.aether.evaluate(tx_xy, tx.station, tx.g, st_xy, active)
+        links = self.aether.links(tx_xy, tx.station, tx.g, st_xy, active)
         t4 = clock()
         timing["channel"] = t4 - t3
 
         # 5. decoded messages: slot maps now, OBU tables next step
-        rx_slot = active[links.rx]
-        ok = links.outcome == OK
-        lt = links.tx[ok]
-        self.mac.hear(
-            rx_slot[ok], tx.station[lt], tx.g[lt], tx.timeout[lt], tx.offset[lt], links.distance_m[ok]
-        )
-        self._inbox = (rx_slot[ok], tx.station[lt], seqs[lt], self.station_id[rx_slot[ok]])
+        lt, lr, dist = links.decoded()
+        rx_slot = active[lr]
+        self.mac.hear(rx_slot, lt, tx.g, tx.timeout, tx.offset, dist)
+        self._inbox = (rx_slot, tx.station[lt], seqs[lt])
         t5 = clock()
         timing["deliver"] = t5 - t4
 
@@ -340,7 +335,7 @@ class VanetLayer:
             step_index=step_index,
             t_s=now_us / 1e6,
             tx=self._tx_columns(tx, tx_us, rec),
-            rx=self._rx_columns(world, tx, tx_us, rec, links, rx_slot),
+            rx=self._rx_columns(world, tx, tx_us, rec, links, active),
             load=self._load_rows(tx, rec, t_hi),
             stats={
                 "t_s": np.array([now_us / 1e6]),
@@ -348,7 +343,7 @@ class VanetLayer:
                 "cams_generated": np.array([n_gen], dtype=np.int32),
                 "cams_dropped": np.array([n_drop], dtype=np.int32),
                 "tx_count": np.array([tx.g.size], dtype=np.int32),
-                "rx_count": np.array([int(np.count_nonzero(ok))], dtype=np.int32),
+                "rx_count": np.array([lt.size], dtype=np.int32),
                 "links_evaluated": np.array([links.n_evaluated], dtype=np.int32),
             },
             timing_s=timing,
@@ -373,15 +368,13 @@ class VanetLayer:
             "offset": tx.offset.astype(np.int32),
         }
 
-    def _rx_columns(self, world, tx, tx_us, rec, links, rx_slot) -> dict[str, np.ndarray]:
+    def _rx_columns(self, world, tx, tx_us, rec, links, active) -> dict[str, np.ndarray]:
         mode = self.params.rx_log
         if mode == "none":
             return _empty(RX_COLUMNS)
-        lt, rs = links.tx, rx_slot
-        dist, outcome, power = links.distance_m, links.outcome, links.power_dbm
-        if mode == "ego":
-            sel = np.flatnonzero(world.is_ego[rx_slot])
-            lt, rs, dist, outcome, power = lt[sel], rs[sel], dist[sel], outcome[sel], power[sel]
+        batch = links.batch(np.flatnonzero(world.is_ego[active]) if mode == "ego" else None)
+        lt, rs = batch.tx, active[batch.rx]
+        dist, outcome, power = batch.distance_m, batch.outcome, batch.power_dbm
         # per-transmission values first, then one gather per column
         per_tx = {
             "t_s": (tx_us + self.slot_us) / 1e6,

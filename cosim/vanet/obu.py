@@ -156,9 +156,12 @@ class ObuTables:
         self.heard[rx_slots, :] = -1
 
     def deliver(self, rx_slots: np.ndarray, sender_slots: np.ndarray, seqs: np.ndarray) -> None:
+        """Record decoded CAMs: one window's, so newer than any held and at most one per (receiver,
+        sender) pair (a station sends once per window)."""
         if rx_slots.size:
-            flat = self.heard.reshape(-1)
-            np.maximum.at(flat, rx_slots.astype(np.int64) * self.capacity + sender_slots, seqs)
+            idx = rx_slots.astype(np.int64) * self.capacity
+            idx += sender_slots
+            self.heard.reshape(-1)[idx] = seqs
 
 
 @dataclass(frozen=True)

@@ -155,10 +155,10 @@ def select_slots(
     inside = offs[None, :] < width[:, None]
     mine = np.zeros(gs.shape, dtype=bool)
     rows = np.arange(b)
-    for c in range(own.shape[1]):
-        pos = (own[:, c] - lo_g) % n_slots
-        hit = (own[:, c] >= 0) & (pos < width)
-        mine[rows[hit], pos[hit]] = True
+    own = np.asarray(own, dtype=np.int64)
+    pos = (own - lo_g[:, None]) % n_slots
+    hr, hc = np.nonzero((own >= 0) & (pos < width[:, None]))
+    mine[hr, pos[hr, hc]] = True
     st = np.asarray(stations)[:, None]
     free = inside & ~mine & (map_until[st, ks] < gs // n_slots)
     n_free = free.sum(axis=1)
@@ -368,48 +368,65 @@ class SotdmaMac:
         More slots: each new nominal slot goes to the middle of the largest gap between the current nominal
         slots, and a slot is selected in its SI. Fewer: keep an evenly spread subset of the reservations.
         """
-        n = self.n
-        arrays = (self.res_slot, self.res_nominal, self.res_next_g, self.res_timeout)
-        rows = [a[stations].tolist() for a in arrays]  # plain lists: a few small rows, no numpy overhead
-        rates = self.rate[stations].tolist()
-        nss = self.nss[stations].tolist()
-        req_s, req_j, req_nom = [], [], []
-        shrunk = []
-        for i, s in enumerate(stations.tolist()):
-            slot, nom = rows[0][i], rows[1][i]
-            cols = sorted((c for c in range(self.r_max) if slot[c] >= 0), key=lambda c: nom[c])
-            new = rates[i]
-            if new < len(cols):
-                keep = [cols[round(k * len(cols) / new)] for k in range(new)]
-                for r, fill in zip(rows, (-1, -1, -1, 0), strict=True):
-                    vals = [r[i][c] for c in keep]
-                    r[i] = vals + [fill] * (self.r_max - new)
-                shrunk.append(i)
-                continue
-            noms = sorted(nom[c] for c in cols)
-            free_cols = [c for c in range(self.r_max) if slot[c] < 0][: new - len(cols)]
-            for c in free_cols:
-                if noms:
-                    gaps = [((noms[(k + 1) % len(noms)] - noms[k]) % n) or n for k in range(len(noms))]
-                    k = max(range(len(gaps)), key=gaps.__getitem__)
-                    nominal = (noms[k] + gaps[k] // 2) % n
-                else:
-                    nominal = nss[i]
-                noms = sorted([*noms, nominal])
-                req_s.append(s)
-                req_j.append(c)
-                req_nom.append(nominal)
-        if shrunk:
-            idx = np.array(shrunk)
-            for a, r in zip(arrays, rows, strict=True):
-                a[stations[idx]] = np.array([r[i] for i in shrunk], dtype=a.dtype)
-        grown = stations[np.isin(stations, np.array(req_s, dtype=np.int64))]
-        self.first_frame_end_g[grown] = g_now + n
-        if req_s:
-            s = np.array(req_s)
-            delta = self._delta(self.rate[s].astype(np.int64))
-            nominal = np.array(req_nom)
-            self._assign(s, np.array(req_j), nominal, self._next_centre(nominal, delta, g_now), delta, g_now)
+        n, r_max = self.n, self.r_max
+        stations = np.asarray(stations, dtype=np.int64)
+        slot, nom = self.res_slot[stations], self.res_nominal[stations].astype(np.int64)
+        valid = slot >= 0
+        cnt = valid.sum(axis=1)
+        new = self.rate[stations].astype(np.int64)
+        # each row's reservations by nominal slot (stable: ties keep column order), unused columns last
+        by_nom = np.argsort(np.where(valid, nom, np.iinfo(np.int64).max), axis=1, kind="stable")
+        shr = np.flatnonzero(new < cnt)
+        if shr.size:
+            k = np.arange(r_max)[None, :]
+            pick = np.round(k * cnt[shr, None] / new[shr, None]).astype(np.int64)
+            keep = by_nom[shr[:, None], np.minimum(pick, r_max - 1)]
+            kept = k < new[shr, None]
+            st = stations[shr]
+            for a, fill in zip(
+                (self.res_slot, self.res_nominal, self.res_next_g, self.res_timeout),
+                (-1, -1, -1, 0),
+                strict=True,
+            ):
+                a[st] = np.where(kept, a[st[:, None], keep], fill)
+        grow = np.flatnonzero(new > cnt)
+        if grow.size == 0:
+            return
+        # the new nominal slots one at a time, each in the middle of the largest gap (first of equal ones)
+        big = np.iinfo(np.int64).max
+        noms = np.sort(np.where(valid[grow], nom[grow], big), axis=1)
+        noms = np.concatenate([noms, np.full((grow.size, r_max), big)], axis=1)
+        c = cnt[grow].copy()
+        add = new[grow] - c
+        nss = self.nss[stations[grow]].astype(np.int64)
+        req_i, req_round, req_nom = [], [], []
+        gi = np.arange(grow.size)
+        for j in range(int(add.max())):
+            r = gi[add > j]
+            cr, nr = c[r], noms[r]
+            kk = np.arange(nr.shape[1])[None, :]
+            nxt = nr[np.arange(r.size)[:, None], np.where(kk + 1 < cr[:, None], kk + 1, 0)]
+            gaps = np.where(kk < cr[:, None], (nxt - nr) % n, -1)
+            gaps[gaps == 0] = n
+            kbest = np.argmax(gaps, axis=1)
+            at = np.arange(r.size)
+            nominal = np.where(cr > 0, (nr[at, kbest] + gaps[at, kbest] // 2) % n, nss[r])
+            noms[r, cr] = nominal
+            noms[r] = np.sort(noms[r], axis=1)
+            c[r] += 1
+            req_i.append(r)
+            req_round.append(np.full(r.size, j))
+            req_nom.append(nominal)
+        ri, rj, rn = np.concatenate(req_i), np.concatenate(req_round), np.concatenate(req_nom)
+        order = np.lexsort((rj, ri))  # station by station, as the requests were made
+        ri, rj, rn = ri[order], rj[order], rn[order]
+        # the j-th new nominal slot goes to the station's j-th unused column
+        free_cols = np.argsort(valid[grow], axis=1, kind="stable")  # unused columns first, in order
+        cols = free_cols[ri, rj]
+        s = stations[grow][ri]
+        self.first_frame_end_g[stations[grow]] = g_now + n
+        delta = self._delta(self.rate[s].astype(np.int64))
+        self._assign(s, cols, rn, self._next_centre(rn, delta, g_now), delta, g_now)
 
     def set_rates(self, slots: np.ndarray, rates: np.ndarray, g_now: int) -> None:
         """Report-rate update after CAM generation.
@@ -484,13 +501,19 @@ class SotdmaMac:
             offset[resel] = new_g - rg
         # first frame after entry / re-plan: announce the offset to the station's next slot
         ff = np.flatnonzero(sends & cont & (g < self.first_frame_end_g[st]))
-        for i in ff.tolist():
-            s, gi = int(st[i]), int(g[i])
-            later = g[(st == s) & (g > gi)]
-            nxt = self.res_next_g[s][self.res_next_g[s] > gi]
-            cands = np.concatenate([later, nxt])
-            if cands.size:
-                offset[i] = int(cands.min()) - gi
+        if ff.size:
+            # the nearest later slot of the station: a later use in this window or a next reservation
+            big = np.iinfo(np.int64).max
+            gf = g[ff]
+            res = self.res_next_g[st[ff]]
+            nearest = np.where(res > gf[:, None], res, big).min(axis=1)
+            pos = np.full(self.capacity, -1, dtype=np.int64)
+            pos[st[ff]] = np.arange(ff.size)
+            p = pos[st]
+            later = np.flatnonzero(p >= 0)
+            later = later[g[later] > gf[p[later]]]
+            np.minimum.at(nearest, p[later], g[later])
+            offset[ff] = np.where(nearest < big, nearest - gf, 0)
         keep = sends
         return Transmissions(
             st[keep].astype(np.int32), g[keep], tau[keep].astype(np.int8), offset[keep].astype(np.int32)
@@ -499,26 +522,29 @@ class SotdmaMac:
     def hear(
         self,
         rx: np.ndarray,
-        tx_station: np.ndarray,
+        link_tx: np.ndarray,
         g: np.ndarray,
         timeout: np.ndarray,
         offset: np.ndarray,
         dist_m: np.ndarray,
     ) -> None:
-        """Update receivers' slot maps from decoded messages (arrays of shape (m,))."""
+        """Update receivers' slot maps from decoded messages: receiver rx (m,) decoded transmission
+        link_tx (m,) at distance dist_m (m,); g, timeout, offset (T,) describe the transmissions."""
         if rx.size == 0:
             return
         n = self.n
         g = g.astype(np.int64)
-        until = (g // n + timeout.astype(np.int64)).astype(np.int32)
+        until = (g // n + timeout.astype(np.int64)).astype(np.int32)  # per transmission, then per link
         # a receiver decodes at most one message per slot, so these cells are unique
-        cell = rx.astype(np.int64) * n + g % n
+        cell = rx.astype(np.int64) * n
+        cell += (g % n)[link_tx]
         mu, md = self.map_until.reshape(-1), self.map_dist.reshape(-1)
-        mu[cell] = np.maximum(mu[cell], until)
+        mu[cell] = np.maximum(mu[cell], until[link_tx])
         md[cell] = dist_m
-        ann = offset != 0
-        if ann.any():
-            gt = g[ann] + offset[ann].astype(np.int64)
+        ann_tx = offset != 0
+        if ann_tx.any():
+            ann = np.flatnonzero(ann_tx[link_tx])
+            gt = g[link_tx[ann]] + offset[link_tx[ann]].astype(np.int64)
             cell = rx[ann].astype(np.int64) * n + gt % n
             np.maximum.at(mu, cell, (gt // n).astype(np.int32))
             md[cell] = dist_m[ann]
