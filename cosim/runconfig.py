@@ -100,6 +100,10 @@ class RunConfig:
     def __post_init__(self):
         if self.duration_s <= 0:
             raise ValueError("duration_s must be > 0")
+        if self.scenario.demand.area == "around_ego" and not self.ego.enabled:
+            raise ValueError(
+                "scenario.demand.area: around_ego generates traffic around the ego: needs ego.enabled"
+            )
 
 
 def load_run_config(path: str | Path | None = None, **overrides) -> RunConfig:

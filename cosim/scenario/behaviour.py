@@ -46,6 +46,10 @@ class ScvBehaviour:
         3.0  # cap: SUMO applies the gap at EVERY minor link, not only signed ones [s]
     )
     give_way_approach_speed_kmh: float = 5.0  # [km/h]
+    # a driver waiting at a minor link goes when the traffic with priority stands still (a jam): without
+    # it, queues that yield to each other around a block of junctions lock up until SUMO teleports them
+    jammed_foe_speed_mps: float = 0.1  # priority traffic at or below this speed counts as standing [m/s]
+    jammed_foe_ignore_prob: float = 0.02  # per step, chance to go past standing priority traffic [-]
     stop_sign_stop_gap_m: float = 1.0  # where SCVs halt before a stop sign's line [m]
     stop_sign_wait_s: float = 1.0  # minimum standstill at a stop sign (paper: >= 2 frames) [s]
     accel_mps2: Dist = Dist(2.6, 0.4, 1.5, 3.5)  # max acceleration [m/s^2]
@@ -64,6 +68,8 @@ class ScvBehaviour:
             raise ValueError("distances must be >= 0")
         if not 0 < self.give_way_approach_speed_kmh <= 50:
             raise ValueError("give_way_approach_speed_kmh must be in (0, 50]")
+        if not 0 <= self.jammed_foe_ignore_prob <= 1 or self.jammed_foe_speed_mps < 0:
+            raise ValueError("jammed_foe_ignore_prob must be in [0, 1] and jammed_foe_speed_mps >= 0")
         if not 0 <= self.sigma <= 1:
             raise ValueError("sigma must be in [0, 1]")
         if self.n_vtypes < 1:
@@ -91,7 +97,8 @@ class ScvBehaviour:
                 f'mass="{mass[i]:.1f}" speedFactor="{speed_factor[i]:.3f}" '
                 f'jmTimegapMinor="{self.minor_time_gap_s:.2f}" jmStoplineGap="{self.red_light_stop_gap_m:.2f}" '
                 f'jmStoplineGapMinor="{self.stop_sign_stop_gap_m:.2f}" '
-                f'jmStopSignWait="{self.stop_sign_wait_s:.2f}">'
+                f'jmStopSignWait="{self.stop_sign_wait_s:.2f}" jmIgnoreFoeSpeed="{self.jammed_foe_speed_mps:.2f}" '
+                f'jmIgnoreFoeProb="{self.jammed_foe_ignore_prob:.3f}">'
                 f'<param key="friction" value="{mu[i]:.3f}"/></vType>'
             )
         lines.append("    </vTypeDistribution>")

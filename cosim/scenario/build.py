@@ -25,7 +25,7 @@ from cosim.scenario.routetable import RouteTable
 from cosim.scenario.signs import SIGN_KINDS, derive_signs, write_signs
 from cosim.sumo_bridge.tools import summarise_warnings, sumo_version
 
-CACHE_FORMAT = 2  # bump when the outputs of a build change for the same inputs
+CACHE_FORMAT = 6  # bump when the outputs of a build change for the same inputs
 NETWORK_FILES = ("network.net.xml", "buildings.poly.xml", "signs.add.xml", "network.json", "netconvert.log")
 SCENARIO_FILES = (*NETWORK_FILES, "routes.rou.xml", "scenario.sumocfg", "report.json")
 
@@ -228,6 +228,8 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
                 "demand": {
                     **dataclasses.asdict(d),
                     "density": demand.density,
+                    "area": demand.area,
+                    "radius_m": demand.radius_m if demand.area == "around_ego" else None,
                     "horizon_s": demand.horizon_s,
                     "seed": seed,
                 },  # fmt: skip
@@ -276,6 +278,19 @@ def _copy_atomically(src: Path, dst: Path) -> None:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+def _traffic_line(d: dict) -> str:
+    routes = f"routes: {d['routes_from_table']} from the table, {d['routes_computed']} computed"
+    if d.get("area") == "around_ego":
+        return (
+            f"  traffic: generated around the ego at run time, {d['target_per_lane_km']} veh/lane-km "
+            f"'{d['density']}' within {d['radius_m']:g} m, from a pool of {d['route_pool']} routes; {routes}"
+        )
+    return (
+        f"  traffic: {d['vehicles']} vehicles ({d['initial_vehicles']} at start, {d['arrival_rate_per_h']:.0f}/h), "
+        f"{d['target_per_lane_km']} veh/lane-km '{d['density']}', {routes}"
+    )
+
+
 def summary_lines(report: dict, where: Path) -> list[str]:
     n, s, d = report["network"], report["signs"], report["demand"]
     jt = n["junctions_by_type"]
@@ -287,8 +302,6 @@ def summary_lines(report: dict, where: Path) -> list[str]:
         f"all-way stop, {n['yield_junctions']} yield junctions; {n['turn_lane_connections']} turn-lane connections",
         "  signs: " + ", ".join(f"{k} {v}" for k, v in s.items()),
         f"  buildings: {report['buildings']['count']} (height from {report['buildings']['height_from']})",
-        f"  traffic: {d['vehicles']} vehicles ({d['initial_vehicles']} at start, {d['arrival_rate_per_h']:.0f}/h), "
-        f"{d['target_per_lane_km']} veh/lane-km '{d['density']}', routes: {d['routes_from_table']} from the table, "
-        f"{d['routes_computed']} computed",
+        _traffic_line(d),
         *[f"  {w}" for w in report["warnings"]],
     ]

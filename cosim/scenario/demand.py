@@ -9,10 +9,16 @@ The scenario also fixes the ego's predefined route (the paper's "predefined path
 from a seeded start until ``ego_route_length_m``. With ``area: ego_route`` the traffic starts and ends
 only within ``corridor_m`` of that route, which gives a study the density where the participant drives
 without paying for a whole town of cars.
+
+With ``area: around_ego`` the scenario holds no vehicles at all, only a pool of routes (a few A* routes
+from every spawn edge, the same for every seed of a map, so the route table serves them all); at run time
+``cosim.phases.traffic`` keeps the density within ``radius_m`` of the ego by generating SCVs ahead of it
+and removing those that fall out of range, as the paper's generator does (V.A).
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -33,6 +39,7 @@ DENSITY_PRESETS = {
     "high": 10.0,
 }  # medium_high: the paper's VII.C
 DENSITY_NAMES = tuple(DENSITY_PRESETS)
+POOL_ROUTE_PREFIX = "pool"  # route ids of the around_ego route pool in routes.rou.xml
 MEAN_SPEED_FRACTION = (
     0.35  # measured on Krems: SCV trips average ~35 % of the speed limit (junctions, lights)
 )
@@ -43,8 +50,10 @@ class DemandParams:
     density: str = "medium"  # a preset name, see DENSITY_PRESETS
     vehicles_per_lane_km: float | None = None  # overrides the preset when given
     horizon_s: float = 3600.0  # vehicles keep arriving until this time [s]
-    area: Literal["network", "ego_route"] = "network"  # where SCVs start and end
+    area: Literal["network", "ego_route", "around_ego"] = "network"  # where SCVs start and end
     corridor_m: float = 300.0  # with area: ego_route, the half-width of the corridor [m]
+    radius_m: float = 500.0  # with area: around_ego, traffic is kept within this distance of the ego [m]
+    spawn_min_m: float = 200.0  # with area: around_ego, new SCVs start at least this far from the ego [m]
     ego_route_length_m: float = 15000.0  # minimum length of the ego's predefined route [m]
 
     def __post_init__(self):
@@ -56,6 +65,8 @@ class DemandParams:
             raise ValueError("horizon_s must be > 0")
         if self.corridor_m <= 0 or self.ego_route_length_m <= 0:
             raise ValueError("corridor_m and ego_route_length_m must be > 0")
+        if not 0 <= self.spawn_min_m < self.radius_m:
+            raise ValueError("spawn_min_m must be >= 0 and below radius_m")
 
     @property
     def per_lane_km(self) -> float:
@@ -88,6 +99,14 @@ def _lanes_for_cars(edge) -> int:
     return sum(1 for lane in edge.getLanes() if lane.allows("passenger"))
 
 
+MAIN_ROADS = ("motorway", "primary", "secondary", "tertiary")
+
+
+def _highway(edge) -> str:
+    """The OSM highway value of an edge's type ('highway.primary|...' -> 'primary')."""
+    return (edge.getType() or "").split("|")[0].removeprefix("highway.")
+
+
 def is_spawn_edge(edge) -> bool:
     etype = edge.getType() or ""
     return any(etype == f"highway.{h}" or etype.startswith(f"highway.{h}|") for h in SPAWN_HIGHWAYS)
@@ -97,23 +116,37 @@ def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: fl
                      net_file: Path, workdir: Path) -> list[str]:  # fmt: skip
     """The ego's predefined route: A* legs to random destinations chained from a seeded start edge."""
     starts = [e for e in comp if is_spawn_edge(e) and e.getLength() > 40 and e.getSpeed() >= 8.0] or comp
+    # start on a main road where there is one: a side street's exit onto busy traffic can keep the lead
+    # and the participant waiting for minutes before the study even begins
+    main = [e for e in starts if _highway(e) in MAIN_ROADS]
+    starts = main or starts
     comp_ids = [e.getID() for e in comp]
     length = {e.getID(): e.getLength() for e in comp}
-    route = [starts[int(rng.integers(len(starts)))].getID()]
-    total = length[route[0]]
-    for _ in range(12):  # batches of candidate legs, routed together
+    ends = {e.getID(): (e.getFromNode().getID(), e.getToNode().getID()) for e in comp}
+
+    def u_turn(a: str, b: str) -> bool:  # b is a's opposite direction (a car turns on the spot)
+        return ends[a] == ends[b][::-1]
+
+    best: list[str] = []
+    for _ in range(6):  # a start whose every way out needs a U-turn (a dead end) is given up
+        route = [starts[int(rng.integers(len(starts)))].getID()]
+        total = length[route[0]]
+        for _ in range(12):  # batches of candidate legs, routed together
+            if total >= min_length_m:
+                return route
+            dests = [comp_ids[int(i)] for i in rng.integers(0, len(comp_ids), 8)]
+            legs = table.routes([(route[-1], d) for d in dests], net_file, workdir)
+            for d in dests:
+                leg = legs.get((route[-1], d))
+                if not leg or len(leg) < 3 or any(u_turn(a, b) for a, b in itertools.pairwise(leg)):
+                    continue
+                route.extend(leg[1:])
+                total += sum(length.get(e, 0.0) for e in leg[1:])
+                break
         if total >= min_length_m:
-            break
-        dests = [comp_ids[int(i)] for i in rng.integers(0, len(comp_ids), 8)]
-        legs = table.routes([(route[-1], d) for d in dests], net_file, workdir)
-        for d in dests:
-            leg = legs.get((route[-1], d))
-            if not leg or len(leg) < 3 or (len(route) > 1 and leg[1] == route[-2]):  # no U-turn
-                continue
-            route.extend(leg[1:])
-            total += sum(length.get(e, 0.0) for e in leg[1:])
-            break
-    return route
+            return route
+        best = max(best, route, key=lambda r: sum(length.get(e, 0.0) for e in r))
+    return best
 
 
 def corridor_edges(comp: list, route: list[str], corridor_m: float) -> list:
@@ -142,6 +175,33 @@ class Demand:
     ego_route: list[str]
     ego_route_length_m: float
     area_lane_km: float
+    route_pool: int = 0  # area: around_ego: routes the run-time generator picks from
+
+
+POOL_ROUTES_PER_ORIGIN = 4
+POOL_MIN_EDGE_M = 20.0  # room to insert on an origin edge
+
+
+def build_route_pool(comp: list, net_hash: str, table: RouteTable, net_file: Path,
+                     workdir: Path) -> list[tuple[str, ...]]:  # fmt: skip
+    """A* routes from every spawn edge to a few destinations drawn from the map alone (not the seed), so
+    every seed and every run of the map reuses the same routes from the table."""
+    origins = [e.getID() for e in comp if is_spawn_edge(e) and e.getLength() > POOL_MIN_EDGE_M]
+    if not origins:
+        raise CosimError(
+            "the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on"
+        )
+    rng = np.random.default_rng(int(net_hash[:12], 16) if net_hash else 0)
+    dest_ids = [e.getID() for e in comp]
+    pairs = [
+        (o, dest_ids[int(j)]) for o in origins for j in rng.integers(0, len(dest_ids), POOL_ROUTES_PER_ORIGIN)
+    ]
+    pairs = [p for p in dict.fromkeys(pairs) if p[0] != p[1]]
+    routes = table.routes(pairs, net_file, workdir)
+    pool = [routes[p] for p in pairs if routes.get(p)]
+    if not pool:
+        raise CosimError("no origin/destination pair could be routed on this network")
+    return pool
 
 
 def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehaviour, rng: np.random.Generator,
@@ -149,6 +209,8 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     comp = full = drivable_component(net)
     ego_route = choose_ego_route(net, comp, np.random.default_rng([int(rng.integers(2**31)), 1]),
                                  params.ego_route_length_m, table, net_file, workdir)  # fmt: skip
+    if params.area == "around_ego":
+        return _write_pool_demand(net, comp, ego_route, params, behaviour, rng, table, net_file, out, workdir)
     if params.area == "ego_route":
         comp = corridor_edges(comp, ego_route, params.corridor_m)
     origins = [e for e in comp if is_spawn_edge(e) and e.getLength() > 5.0]
@@ -213,6 +275,24 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
         n += 1
     lines.append("</routes>")
     out.write_text("\n".join(lines) + "\n")
-    ego_len = sum(e.getLength() for e in (net.getEdge(r) for r in ego_route))
     return Demand(n, len(initial), lane_km, params.per_lane_km, rate * 3600.0, mean_trip, dropped,
-                  table.hits, table.computed, ego_route, round(ego_len, 1), round(lane_km, 2))  # fmt: skip
+                  table.hits, table.computed, ego_route, _route_length(net, ego_route), round(lane_km, 2))  # fmt: skip
+
+
+def _route_length(net, route: list[str]) -> float:
+    return round(sum(net.getEdge(r).getLength() for r in route), 1)
+
+
+def _write_pool_demand(net, comp: list, ego_route: list[str], params: DemandParams, behaviour: ScvBehaviour,
+                       rng: np.random.Generator, table: RouteTable, net_file: Path, out: Path,
+                       workdir: Path) -> Demand:  # fmt: skip
+    """area: around_ego: the vehicle types, the ego's route and the route pool; no vehicles."""
+    pool = build_route_pool(comp, table.net_hash, table, net_file, workdir)
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>", behaviour.vtype_distribution_xml(rng),
+             f'    <route id="ego_route" edges="{" ".join(ego_route)}"/>']  # fmt: skip
+    lines += [f'    <route id="{POOL_ROUTE_PREFIX}{i}" edges="{" ".join(r)}"/>' for i, r in enumerate(pool)]
+    lines.append("</routes>")
+    out.write_text("\n".join(lines) + "\n")
+    lane_km = sum(e.getLength() * _lanes_for_cars(e) for e in comp) / 1000.0
+    return Demand(0, 0, round(lane_km, 2), params.per_lane_km, 0.0, 0.0, 0, table.hits, table.computed,
+                  ego_route, _route_length(net, ego_route), round(lane_km, 2), len(pool))  # fmt: skip

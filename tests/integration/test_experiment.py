@@ -81,7 +81,7 @@ def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     """With no shadowing, the time gap system B shows from CAMs matches SUMO's SSM TGAP for the same pair:
     median error < 0.1 s, 90 % within 0.3 s (the rest: CAM age before a sudden speed change)."""
     cfg = load_run_config(ROOT / "configs" / "default.yaml", **{
-        "duration_s": 90, "scenario.demand.density": "low", "ego.physics": "sumo", "adas.system": "B",
+        "duration_s": 120, "scenario.demand.density": "low", "ego.physics": "sumo", "adas.system": "B",
         "vanet.channel.shadowing": "none"})  # fmt: skip
     ssm = tmp_path / "ssm.xml"
     args = ("--device.ssm.explicit", "ego", "--device.ssm.measures", "TGAP", "--device.ssm.file", str(ssm),
