@@ -7,6 +7,7 @@ the ego (leader, next light), and asks the driver; ``ego`` integrates the MuJoCo
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -38,7 +39,7 @@ class RoutePath:
     """The route as one lane centre-line polyline with arc lengths, its stop lines and speed limits."""
 
     def __init__(self, net, route: list[str]):
-        pts: list[tuple[float, float]] = []
+        line = _Polyline()
         self.stop_lines: list[StopLine] = []
         limits: list[tuple[float, float]] = []  # (s where it starts, speed)
         entry_lane = None
@@ -49,21 +50,23 @@ class RoutePath:
             conns = sorted(conns, key=lambda c: c.getFromLane().getIndex())
             lane = conns[0].getFromLane() if conns else (entry_lane or edge.getLane(0))
             shape = [tuple(p[:2]) for p in lane.getShape()]
-            if entry_lane is not None and entry_lane is not lane and pts:  # change lanes early on the edge
+            if (
+                entry_lane is not None and entry_lane is not lane and line.pts
+            ):  # change lanes early on the edge
                 shape = _trim_start(shape, min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength()))
-            s0 = _extend(pts, shape)
+            s0 = line.extend(shape)
             limits.append((s0, lane.getSpeed()))
             if conns:
                 c = conns[0]
                 node = edge.getToNode()
                 self.stop_lines.append(
-                    StopLine(_length(pts), node.getID(), c.getState(), tuple(node.getCoord()[:2]))
+                    StopLine(line.length, node.getID(), c.getState(), tuple(node.getCoord()[:2]))
                 )
                 via = c.getViaLaneID()
                 if via:
-                    _extend(pts, [tuple(p[:2]) for p in net.getLane(via).getShape()])
+                    line.extend([tuple(p[:2]) for p in net.getLane(via).getShape()])
                 entry_lane = c.getToLane()
-        xy = np.asarray(pts, dtype=np.float64)
+        xy = np.asarray(line.pts, dtype=np.float64)
         keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
         self.xy = xy[keep]
         self.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.xy, axis=0).T))])
@@ -145,13 +148,23 @@ class RoutePath:
 
 
 def _length(pts) -> float:
-    return float(sum(math.dist(a, b) for a, b in zip(pts, pts[1:], strict=False))) if len(pts) > 1 else 0.0
+    return float(sum(math.dist(a, b) for a, b in itertools.pairwise(pts)))
 
 
-def _extend(pts: list, shape: list) -> float:
-    s0 = _length(pts)
-    pts.extend(shape)
-    return s0
+class _Polyline:
+    """Points appended shape by shape, with the running length (the route can have thousands)."""
+
+    def __init__(self):
+        self.pts: list[tuple[float, float]] = []
+        self.length = 0.0
+
+    def extend(self, shape: list) -> float:
+        """Append ``shape``; returns the length before it (the limit of a lane starts at its joint)."""
+        s0 = self.length
+        gap = math.dist(self.pts[-1], shape[0]) if self.pts and shape else 0.0
+        self.pts.extend(shape)
+        self.length = s0 + gap + _length(shape)
+        return s0
 
 
 def _trim_start(shape: list, dist: float) -> list:

@@ -22,6 +22,7 @@ import math
 from xml.etree import ElementTree as ET
 
 import numpy as np
+import shapely
 
 from cosim.scenario.demand import POOL_ROUTE_PREFIX, DemandParams, drivable_component, is_spawn_edge
 from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID
@@ -103,10 +104,10 @@ class TrafficAroundEgo:
         # a spot stands for SAMPLE_STEP_M of every lane of its edge
         self.spot_weight = np.array([len(edges[self.origins[i]].getLanes()) for i in self.spot_origin], float)
         # vehicles the target density puts within LOCAL_M of each spot
-        self.spot_capacity = np.concatenate([
-            (np.hypot(self.pt_x - chunk[:, :1], self.pt_y - chunk[:, 1:]) <= LOCAL_M) @ self.pt_w
-            for chunk in np.array_split(self.spot_xy, max(1, len(self.spot_xy) // 256))
-        ]) * self.params.per_lane_km  # fmt: skip
+        tree = shapely.STRtree(shapely.points(self.pt_x, self.pt_y))
+        spot, pt = tree.query(shapely.points(self.spot_xy), predicate="dwithin", distance=LOCAL_M)
+        lane_km = np.bincount(spot, weights=self.pt_w[pt], minlength=len(self.spot_xy))
+        self.spot_capacity = self.params.per_lane_km * lane_km
 
     # -- per update ------------------------------------------------------------------------------------
     def _centre(self) -> tuple[float, float, float | None]:

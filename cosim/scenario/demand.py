@@ -29,6 +29,7 @@ from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.scenario.osm import SPAWN_HIGHWAYS
 from cosim.scenario.routetable import RouteTable
+from cosim.sumo_bridge.bridge import EGO_VTYPE
 
 # vehicles per lane-km present on average. For scale: a free-flowing urban lane carries ~10-20 veh/km,
 # jam density is ~130-150; city-wide averages are far lower because side streets are nearly empty.
@@ -256,8 +257,7 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     routes.update(table.routes(flow, net_file, workdir))
     dropped = sum(1 for p in flow if not routes.get(p))
 
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>", behaviour.vtype_distribution_xml(rng),
-             f'    <route id="ego_route" edges="{" ".join(ego_route)}"/>']  # fmt: skip
+    lines = _routes_head(behaviour, rng, ego_route)
     n = 0
     for o, d in initial:  # already spread over the network at t = 0
         lines.append(
@@ -279,6 +279,14 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
                   table.hits, table.computed, ego_route, _route_length(net, ego_route), round(lane_km, 2))  # fmt: skip
 
 
+def _routes_head(behaviour: ScvBehaviour, rng: np.random.Generator, ego_route: list[str]) -> list[str]:
+    """The SCV types, the ego's type and the ego's route. SUMO never teleports the ego: a participant
+    who stands for minutes must not vanish from the traffic (the bridge sets its size)."""
+    return ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>", behaviour.vtype_distribution_xml(rng),
+            f'    <vType id="{EGO_VTYPE}" vClass="passenger" timeToTeleport="-1"/>',
+            f'    <route id="ego_route" edges="{" ".join(ego_route)}"/>']  # fmt: skip
+
+
 def _route_length(net, route: list[str]) -> float:
     return round(sum(net.getEdge(r).getLength() for r in route), 1)
 
@@ -288,8 +296,7 @@ def _write_pool_demand(net, comp: list, ego_route: list[str], params: DemandPara
                        workdir: Path) -> Demand:  # fmt: skip
     """area: around_ego: the vehicle types, the ego's route and the route pool; no vehicles."""
     pool = build_route_pool(comp, table.net_hash, table, net_file, workdir)
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<routes>", behaviour.vtype_distribution_xml(rng),
-             f'    <route id="ego_route" edges="{" ".join(ego_route)}"/>']  # fmt: skip
+    lines = _routes_head(behaviour, rng, ego_route)
     lines += [f'    <route id="{POOL_ROUTE_PREFIX}{i}" edges="{" ".join(r)}"/>' for i, r in enumerate(pool)]
     lines.append("</routes>")
     out.write_text("\n".join(lines) + "\n")
