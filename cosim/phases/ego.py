@@ -19,6 +19,8 @@ from cosim.sumo_bridge.bridge import EGO_ID
 
 PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
+TLS_NEAR_M = 150.0  # a light nearer than this is looked up every step, farther ones once a second
+TLS_REFRESH_S = 1.0
 CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
 ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
@@ -205,6 +207,7 @@ class EgoController:
         self.percept: Percept | None = None
         self._passed_signs: set[int] = set()
         self._last_tls = None
+        self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         sim.add_hook("sumo", self.own_state)
         sim.add_hook("driver", self.drive)
         sim.add_hook("ego", self.integrate)
@@ -240,7 +243,7 @@ class EgoController:
         s_front = s_c + 0.5 * self.car.params.length_m
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
-        tls = sim.bridge.next_tls(EGO_ID)
+        tls = self._next_tls(sim, s_front)
         self._check_red_light(sim, tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
@@ -263,6 +266,19 @@ class EgoController:
             route_end_dist_m=max(0.0, self.path.length_m - s_front), **kw, **adas,
         )  # fmt: skip
         self.controls = self.driver.act(self.percept, sim.step_s)
+
+    def _next_tls(self, sim, s_front: float):
+        """SUMO's next light on the ego's way (a costly lookup): every step when it is near, otherwise once
+        a second, its distance carried forward with the ego's progress in between."""
+        cached = self._tls_cache
+        if cached is not None:
+            tls, s_read, step = cached
+            moved = s_front - s_read
+            if tls and tls[2] - moved > TLS_NEAR_M and (sim.world.step - step) * sim.step_s < TLS_REFRESH_S:
+                return (tls[0], tls[1], tls[2] - moved, tls[3])
+        tls = sim.bridge.next_tls(EGO_ID)
+        self._tls_cache = (tls, s_front, sim.world.step)
+        return tls
 
     def _check_red_light(self, sim, tls) -> None:
         """The ego crossed a stop line at red: the light it was about to reach is gone while it was red."""
