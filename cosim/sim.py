@@ -84,6 +84,7 @@ class Simulation:
         self.vanet = None  # the VanetPhase when the radio is on
         self.adas = None  # the AdasPhase when there is an ego
         self.lead = None  # the LeadVehicle of the following task
+        self.traffic = None  # TrafficAroundEgo when the scenario's traffic is generated around the ego
         self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
         self.closed = False
         try:
@@ -109,6 +110,10 @@ class Simulation:
                     self.lead = LeadVehicle(self, config.ego.lead_waits_beyond_m)
 
                 self.adas = AdasPhase(self, config.adas)
+                if config.scenario.demand.area == "around_ego":
+                    from cosim.phases.traffic import TrafficAroundEgo
+
+                    self.traffic = TrafficAroundEgo(self, config.scenario.demand)
             from cosim.log.recorder import attach_recorder
 
             if self.mcap is not None:

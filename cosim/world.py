@@ -58,6 +58,7 @@ class World:
             setattr(self, name, np.full(self.capacity, fill, dtype=dtype))
         self.ids = [None] * self.capacity
         self._free: list[int] = list(range(self.capacity - 1, -1, -1))  # pop() gives the lowest
+        self._live: tuple[np.ndarray, list[str]] | None = None  # (slots, ids) cache, dropped on add/remove
 
     # -- slots ---------------------------------------------------------------------------------------------
     def add(self, vehicle_id: str, *, is_ego: bool = False) -> int:
@@ -72,6 +73,7 @@ class World:
         self.valid[slot] = True
         self.is_ego[slot] = is_ego
         self.depart_step[slot] = self.step
+        self._live = None
         return slot
 
     def remove(self, vehicle_id: str) -> int | None:
@@ -84,6 +86,7 @@ class World:
         self.ids[slot] = None
         self._free.append(slot)
         self._free.sort(reverse=True)
+        self._live = None
         return slot
 
     def _grow(self, capacity: int) -> None:
@@ -105,6 +108,14 @@ class World:
         return code
 
     # -- views ---------------------------------------------------------------------------------------------
+    def live(self) -> tuple[np.ndarray, list[str]]:
+        """(slots, ids) of the live vehicles in slot order; cached until the next add/remove (the per-step
+        snapshot read walks it every step)."""
+        if self._live is None:
+            slots = np.flatnonzero(self.valid)
+            self._live = (slots, [self.ids[i] for i in slots.tolist()])
+        return self._live
+
     @property
     def ego_slot(self) -> int:
         """Slot of the ego vehicle, or -1 when it is not in the world."""

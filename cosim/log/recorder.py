@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -12,11 +13,6 @@ from cosim.sumo_bridge.bridge import EGO_ID
 def _r(a: np.ndarray, nd: int) -> list:
     """Round for a compact, deterministic JSON payload."""
     return np.round(a, nd).tolist()
-
-
-def _yaw_quat(heading_deg: float) -> dict:
-    yaw = math.radians(90.0 - heading_deg)  # compass heading -> counter-clockwise from +x
-    return {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}
 
 
 class Recorder:
@@ -42,15 +38,13 @@ class Recorder:
             msg.update(sim.outputs.get("ego_log", {}))
             log.write("/ego/state", t, msg)
         every = self.cfg.traffic_every_steps
-        if every and step % every == 0:
+        if every and step % every == 0:  # built and encoded by the writer, from copies of the columns
             idx = np.flatnonzero(w.valid & ~w.is_ego)
-            log.write("/traffic/vehicles", t, {
-                "t_s": t, "step": step, "id": [w.ids[i] for i in idx], "slot": idx.tolist(),
-                "x_m": _r(w.x_m[idx], 2), "y_m": _r(w.y_m[idx], 2), "heading_deg": _r(w.heading_deg[idx], 1),
-                "speed_mps": _r(w.speed_mps[idx], 2), "accel_mps2": _r(w.accel_mps2[idx], 2),
-                "edge": [w.edge_names[c] if c >= 0 else "" for c in w.edge_code[idx]],
-                "lane_index": w.lane_index[idx].tolist(), "signals": w.signals[idx].tolist(),
-            })  # fmt: skip
+            names = w.edge_names
+            log.write_deferred("/traffic/vehicles", t, _traffic, t, step, [w.ids[i] for i in idx.tolist()], idx,
+                               w.x_m[idx], w.y_m[idx], w.heading_deg[idx], w.speed_mps[idx], w.accel_mps2[idx],
+                               [names[c] if c >= 0 else "" for c in w.edge_code[idx].tolist()], w.lane_index[idx],
+                               w.signals[idx])  # fmt: skip
         ids, states = sim.bridge.traffic_lights()
         changed = [(i, s) for i, s in zip(ids, states, strict=True) if self._tls_state.get(i) != s]
         if changed:
@@ -66,33 +60,76 @@ class Recorder:
             log.write(topic, t, msg)
         scene_every = self.cfg.scene_every_steps
         if scene_every and step % scene_every == 0:
-            log.write("/scene", t, self._scene(w, t))
+            cx, cy = w.centre_xy()
+            idx = np.flatnonzero(w.valid)
+            ego = w.ego_slot
+            if ego >= 0 and self.cfg.scene_radius_m > 0:
+                d = np.hypot(cx[idx] - cx[ego], cy[idx] - cy[ego])
+                idx = idx[d <= self.cfg.scene_radius_m]
+            log.write_deferred("/scene", t, _scene, t, [w.ids[i] for i in idx.tolist()], cx[idx], cy[idx],
+                               w.heading_deg[idx], w.length_m[idx], w.width_m[idx], w.is_ego[idx])  # fmt: skip
 
-    def _scene(self, w, t: float) -> dict:
-        cx, cy = w.centre_xy()
-        idx = np.flatnonzero(w.valid)
-        ego = w.ego_slot
-        if ego >= 0 and self.cfg.scene_radius_m > 0:
-            d = np.hypot(cx[idx] - cx[ego], cy[idx] - cy[ego])
-            idx = idx[d <= self.cfg.scene_radius_m]
-        sec = int(t)
-        stamp = {"sec": sec, "nsec": int(round((t - sec) * 1e9))}
-        entities = []
-        for i in idx:
-            is_ego = bool(w.is_ego[i])
-            color = (
-                {"r": 0.9, "g": 0.1, "b": 0.1, "a": 1.0}
-                if is_ego
-                else {"r": 0.3, "g": 0.5, "b": 0.9, "a": 0.9}
-            )
-            entities.append({
-                "timestamp": stamp, "frame_id": "map", "id": w.ids[i], "lifetime": {"sec": 0, "nsec": 0},
-                "frame_locked": False, "metadata": [],
-                "cubes": [{"pose": {"position": {"x": round(float(cx[i]), 2), "y": round(float(cy[i]), 2), "z": 0.75},
-                                    "orientation": _yaw_quat(float(w.heading_deg[i]))},
-                           "size": {"x": float(w.length_m[i]), "y": float(w.width_m[i]), "z": 1.5}, "color": color}],
-            })  # fmt: skip
-        return {"deletions": [{"timestamp": stamp, "type": 1, "id": ""}], "entities": entities}
+
+def _traffic(t, step, ids, slots, x, y, heading, speed, accel, edges, lane_index, signals) -> dict:
+    """The ``/traffic/vehicles`` message: every SCV as columns, rounded for a compact payload."""
+    return {
+        "t_s": t, "step": step, "id": ids, "slot": slots.tolist(), "x_m": _r(x, 2), "y_m": _r(y, 2),
+        "heading_deg": _r(heading, 1), "speed_mps": _r(speed, 2), "accel_mps2": _r(accel, 2), "edge": edges,
+        "lane_index": lane_index.tolist(), "signals": signals.tolist(),
+    }  # fmt: skip
+
+
+def _scene(t: float, ids, cx, cy, heading, length, width, is_ego) -> bytes:
+    """The ``foxglove.SceneUpdate`` payload: the given vehicles (front-bumper centre ``cx``, ``cy``) as boxes.
+
+    Encoded from templates rather than by ``json.dumps`` over a dict per vehicle (a quarter of the cost);
+    the bytes are the same as the dict form would give (tests/unit/test_log_payloads.py checks it).
+    """
+    sec = int(t)
+    stamp = f'{{"sec":{sec},"nsec":{int(round((t - sec) * 1e9))}}}'
+    yaws = [math.radians(90.0 - h) for h in heading.tolist()]  # compass -> counter-clockwise from +x
+    cols = zip(
+        map(_json_str, ids),
+        _json_floats(cx.tolist(), 2),
+        _json_floats(cy.tolist(), 2),
+        _json_floats([math.sin(y / 2) for y in yaws]),
+        _json_floats([math.cos(y / 2) for y in yaws]),
+        _json_floats(length.tolist()),
+        _json_floats(width.tolist()),
+        [_EGO_COLOR if e else _SCV_COLOR for e in is_ego.tolist()],
+        strict=True,
+    )
+    entities = ",".join([_ENTITY % (stamp, *c) for c in cols])
+    return f'{{"deletions":[{{"timestamp":{stamp},"type":1,"id":""}}],"entities":[{entities}]}}'.encode()
+
+
+_json_str = json.encoder.encode_basestring_ascii  # a str as json.dumps writes it (quoted, ASCII-escaped)
+_EGO_COLOR = '{"r":0.9,"g":0.1,"b":0.1,"a":1.0}'
+_SCV_COLOR = '{"r":0.3,"g":0.5,"b":0.9,"a":0.9}'
+# one foxglove.SceneEntity with a single cube; fields: stamp, id, x, y, qz, qw, length, width, colour
+_ENTITY = (
+    '{"timestamp":%s,"frame_id":"map","id":%s,"lifetime":{"sec":0,"nsec":0},"frame_locked":false,'
+    '"metadata":[],"cubes":[{"pose":{"position":{"x":%s,"y":%s,"z":0.75},'
+    '"orientation":{"x":0.0,"y":0.0,"z":%s,"w":%s}},"size":{"x":%s,"y":%s,"z":1.5},"color":%s}]}'
+)
+
+
+def _json_floats(values: list[float], decimals: int | None = None) -> list[str]:
+    """Floats as json.dumps writes them (repr), or of ``round(v, decimals)`` (decimals >= 1); NaN/inf as
+    null, like ``McapLog.write``. The per-value work stays in C (map, one %-format over the whole list)."""
+    if decimals is None:
+        out = list(map(float.__repr__, values))
+    elif values and max(map(abs, values)) < 1e15:  # below repr's switch to exponents
+        # fixed point rounds like round(); cutting one zero per pass leaves repr's form ("12.30" -> "12.3")
+        text = (f"%.{decimals}f," * len(values)) % tuple(values)
+        for _ in range(decimals - 1):
+            text = text.replace("0,", ",")
+        out = text[:-1].split(",")
+    else:
+        out = [repr(round(v, decimals)) for v in values]
+    if not all(map(math.isfinite, values)):
+        out = [s if math.isfinite(v) else "null" for s, v in zip(out, values, strict=True)]
+    return out
 
 
 def attach_recorder(sim) -> None:

@@ -1,15 +1,29 @@
 """One MCAP file per run: zstd chunks, JSON messages with JSON-schema channels.
 
+The JSON encoding, chunking and compression run in a child process by default (``background``): the
+simulation process only pickles each message into a pipe, so logging costs the lockstep loop little (a
+thread would not help: libsumo keeps the GIL while SUMO steps). Messages keep their order (one pipe, one
+writer), so the file is as deterministic as before; ``write_deferred`` moves the building of a large
+payload (per-vehicle columns) to the writer too.
+
 Crash safety: chunks are small and the writer is flushed (chunk closed, bytes handed to the OS) every
-``flush_every_s`` of wall time, so a killed process loses at most that much; ``cosim.log.read`` reads such
-a file up to the last complete chunk. Ctrl-C ends the run through ``close()``, which writes the summary.
+``flush_every_s`` of wall time, so a killed writer loses at most that much; ``cosim.log.read`` reads such
+a file up to the last complete chunk. Ctrl-C ends the run through ``close()``, which writes the summary;
+the writer ignores Ctrl-C itself and, if the simulation process is killed, writes what reached it and
+closes the file.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import pickle
+import signal
+import subprocess
+import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
@@ -36,17 +50,35 @@ def _clean(value):
     return value
 
 
-class McapLog:
-    def __init__(self, path: str | Path, *, chunk_size: int = 256 * 1024, flush_every_s: float = 2.0):
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+def _widen_pipe(stream) -> None:
+    """A 1 MiB pipe (Linux; 64 KiB by default) lets the run go on while the writer catches up with a burst
+    (the per-vehicle columns), instead of waiting for it at every large message."""
+    try:
+        import fcntl
+
+        fcntl.fcntl(stream.fileno(), fcntl.F_SETPIPE_SZ, 1 << 20)
+    except (ImportError, AttributeError, OSError):  # not Linux, or above /proc/sys/fs/pipe-max-size
+        pass
+
+
+def encode(message: dict) -> bytes:
+    """A message's JSON payload: compact separators, NaN/inf as null."""
+    try:
+        return json.dumps(message, separators=(",", ":"), allow_nan=False).encode()
+    except ValueError:  # a NaN/inf somewhere: the rare slow path
+        return json.dumps(_clean(message), separators=(",", ":"), allow_nan=False).encode()
+
+
+class _File:
+    """The MCAP file itself: encodes, chunks (zstd) and flushes. Lives where the bytes are written."""
+
+    def __init__(self, path: Path, chunk_size: int, flush_every_s: float):
+        self._fh = open(path, "wb")  # noqa: SIM115 - closed in close()
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="cosim")
         self._channels: dict[str, int] = {}
         self._flush_every_s = flush_every_s
         self._last_flush = time.monotonic()
-        self.closed = False
         self.count = 0
 
     def channel(self, topic: str, schema: dict | None = None) -> int:
@@ -56,13 +88,10 @@ class McapLog:
             self._channels[topic] = self._writer.register_channel(topic, "json", sid)
         return self._channels[topic]
 
-    def write(self, topic: str, t_s: float, message: dict) -> None:
-        """Append one message; log time = simulated time (so the file is deterministic)."""
-        ns = round(t_s * 1e9)
-        try:
-            data = json.dumps(message, separators=(",", ":"), allow_nan=False).encode()
-        except ValueError:  # a NaN/inf somewhere: the rare slow path
-            data = json.dumps(_clean(message), separators=(",", ":"), allow_nan=False).encode()
+    def write(self, topic: str, ns: int, message, build: Callable | None = None, args: tuple = ()) -> None:
+        if build is not None:
+            message = build(*args)
+        data = message if isinstance(message, bytes) else encode(message)
         self._writer.add_message(
             self.channel(topic), log_time=ns, data=data, publish_time=ns, sequence=self.count
         )
@@ -73,14 +102,104 @@ class McapLog:
             self._writer.flush()
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
-        self._writer.add_metadata(name, {k: str(v) for k, v in data.items()})
+        self._writer.add_metadata(name, data)
 
     def close(self) -> None:
-        if not self.closed:
-            self.closed = True
-            self._writer.finish()
-            self._fh.flush()
-            self._fh.close()
+        self._writer.finish()
+        self._fh.flush()
+        self._fh.close()
+
+
+def _serve(path: str, chunk_size: int, flush_every_s: float) -> None:
+    """The writer process: apply (method, args) records from stdin to the file until end of input."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the run decides when the log ends
+    out = _File(Path(path), chunk_size, flush_every_s)
+    stdin = sys.stdin.buffer
+    try:
+        while True:
+            try:
+                method, args = pickle.load(stdin)
+            except (EOFError, pickle.UnpicklingError):  # closed, or the simulation process is gone (maybe in
+                break  # the middle of a record): finish the file with what came complete
+            getattr(out, method)(*args)
+    finally:
+        out.close()
+
+
+class McapLog:
+    def __init__(self, path: str | Path, *, chunk_size: int = 256 * 1024, flush_every_s: float = 2.0,
+                 background: bool = True):  # fmt: skip
+        """``background`` writes from a child process (see the module doc); else in this process."""
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.closed = False
+        self.count = 0
+        self._proc: subprocess.Popen | None = None
+        self._file: _File | None = None
+        if background:
+            import cosim
+
+            root = str(Path(cosim.__file__).resolve().parents[1])  # the child imports this same cosim
+            env = {
+                **os.environ,
+                "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])),
+            }
+            code = f"from cosim.log.writer import _serve; _serve({str(self.path)!r}, {chunk_size}, {flush_every_s!r})"
+            # own session: a Ctrl-C at the terminal reaches the run only, which then closes the log
+            self._proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, env=env,
+                                          stdout=subprocess.DEVNULL, bufsize=1 << 16, start_new_session=True)  # fmt: skip
+            _widen_pipe(self._proc.stdin)
+        else:
+            self._file = _File(self.path, chunk_size, flush_every_s)
+
+    @property
+    def writer_pid(self) -> int | None:
+        """Process id of the background writer (None when writing in this process)."""
+        return self._proc.pid if self._proc is not None else None
+
+    def _call(self, method: str, *args) -> None:
+        if self._file is not None:
+            getattr(self._file, method)(*args)
+            return
+        try:
+            pickle.dump((method, args), self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+        except (BrokenPipeError, OSError):
+            raise RuntimeError(f"the log writer of {self.path} stopped (its error is above)") from None
+
+    def channel(self, topic: str, schema: dict | None = None) -> None:
+        """Register ``topic`` now (with its own ``schema``; default: the topic's known one or a generic)."""
+        self._call("channel", topic, schema)
+
+    def write(self, topic: str, t_s: float, message: dict | bytes) -> None:
+        """Append one message (a dict, or its JSON as ``encode`` gives it); log time = simulated time (so the
+        file is deterministic)."""
+        self._call("write", topic, round(t_s * 1e9), message)
+        self.count += 1
+
+    def write_deferred(self, topic: str, t_s: float, build: Callable, *args) -> None:
+        """Append the message ``build(*args)`` (a dict or JSON bytes), built by the writer: ``build`` must be a
+        module-level function and ``args`` picklable and not changed afterwards (pass copies)."""
+        self._call("write", topic, round(t_s * 1e9), None, build, args)
+        self.count += 1
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        self._call("metadata", name, {k: str(v) for k, v in data.items()})
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if self._file is not None:
+            self._file.close()
+            return
+        try:
+            self._proc.stdin.close()  # end of input: the writer finishes the file
+        except (BrokenPipeError, OSError):
+            pass
+        if self._proc.wait() != 0:
+            raise RuntimeError(
+                f"the log writer of {self.path} failed (exit {self._proc.returncode}; error above)"
+            )
 
     def __enter__(self):
         return self

@@ -25,7 +25,7 @@ from cosim.scenario.routetable import RouteTable
 from cosim.scenario.signs import SIGN_KINDS, derive_signs, write_signs
 from cosim.sumo_bridge.tools import summarise_warnings, sumo_version
 
-CACHE_FORMAT = 7  # bump when the outputs of a build change for the same inputs
+CACHE_FORMAT = 8  # bump when the outputs of a build change for the same inputs
 NETWORK_FILES = ("network.net.xml", "buildings.poly.xml", "signs.add.xml", "network.json", "netconvert.log")
 SCENARIO_FILES = (*NETWORK_FILES, "routes.rou.xml", "scenario.sumocfg", "report.json")
 
@@ -150,7 +150,10 @@ def _sumocfg(seed: int) -> str:
         <time-to-teleport value="120"/>
         <!-- vehicles standing in a junction for 20 s no longer block it: resolves OSM-typical deadlocks -->
         <ignore-junction-blocker value="20"/>
+        <!-- collisions are reported (cosim logs them), on junctions too, and only as a real overlap -->
         <collision.action value="warn"/>
+        <collision.check-junctions value="true"/>
+        <collision.mingap-factor value="0"/>
     </processing>
     <random_number>
         <seed value="{seed}"/>

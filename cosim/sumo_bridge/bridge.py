@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import chain
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from cosim.world import World
 
 EGO_ID = "ego"
 LEAD_ID = "lead"
+EGO_VTYPE = "ego_car"  # the scenario's routes define it (cosim.scenario.demand), never teleported
 OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
 MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
 
@@ -41,6 +43,32 @@ class SumoEvent:
     value: float = float("nan")
 
 
+class _LaneTable(dict):
+    """SUMO lane id -> row of (edge code, lane index); a lane seen for the first time is split and its edge
+    interned in ``world`` (``__missing__``), so the per-step lookup is one C-level dict access per vehicle.
+    Row 0 is the empty lane id of a vehicle off the network (-1, -1)."""
+
+    def __init__(self):
+        super().__init__({"": 0})
+        self.world: World | None = None
+        self._edge, self._index = [-1], [-1]
+        self._arrays: tuple[np.ndarray, np.ndarray] | None = None
+
+    def __missing__(self, lane: str) -> int:
+        edge, _, idx = lane.rpartition("_")
+        row = self[lane] = len(self._edge)
+        self._edge.append(self.world.intern_edge(edge))
+        self._index.append(int(idx) if idx.isdigit() else -1)
+        self._arrays = None
+        return row
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(edge code, lane index) by row."""
+        if self._arrays is None:
+            self._arrays = (np.array(self._edge, np.int32), np.array(self._index, np.int16))
+        return self._arrays
+
+
 class SumoBridge:
     def __init__(self, sumocfg, *, seed: int, step_s: float, gui: bool = False, traci: bool = False,
                  extra_args: tuple[str, ...] = ()):  # fmt: skip
@@ -49,8 +77,7 @@ class SumoBridge:
         self.sumo = _backend(gui or traci)
         cmd = [binary("sumo-gui" if gui else "sumo"), "-c", str(sumocfg), "--seed", str(seed),
                "--step-length", f"{step_s:g}", "--no-warnings", "true", "--no-step-log", "true",
-               "--collision.check-junctions", "true", "--collision.action", "warn",
-               "--collision.mingap-factor", "0",  # a collision is a real overlap, not a gap below minGap
+               # collision detection is the scenario's (its sumocfg), so bare SUMO on it pays the same
                "--additional-files", str(sumocfg.parent / "signs.add.xml"),  # buildings are cosim's, not SUMO's
                *extra_args]  # fmt: skip
         if gui:
@@ -61,13 +88,15 @@ class SumoBridge:
             raise CosimError(f"SUMO could not start the scenario {sumocfg}: {exc}") from None
         self.step_s = step_s
         self.open = True
-        self._lane_codes: dict[str, tuple[int, int]] = {}
+        self._lanes = _LaneTable()
+        self._tls_ids: list[str] | None = None
         self._getters = self._fast_getters()
         self.ego_id: str | None = None
         self.ego_on_road = True
         self._unmapped_steps = 0
         self._pose_off_road = False
         self._colliding: set[tuple[str, str]] = set()
+        self._removed: list[str] = []  # removed by cosim this step
 
     def close(self) -> None:
         if self.open:
@@ -84,6 +113,9 @@ class SumoBridge:
         world.t_s = sim.getTime()
         for vid in sim.getArrivedIDList():
             world.remove(vid)
+        for vid in self._removed:  # SUMO does not list vehicles removed by TraCI as arrived
+            world.remove(vid)
+        self._removed.clear()
         veh = sumo.vehicle
         for vid in sim.getDepartedIDList():
             slot = world.add(vid, is_ego=(vid == self.ego_id))
@@ -115,54 +147,69 @@ class SumoBridge:
         ``map`` over the getters and one numpy assignment per field keep the per-vehicle Python overhead
         small; lane position, lateral offset and signals are read for the ego only (nothing else uses them).
         """
-        veh = self.sumo.vehicle
-        ids = [v for v in world.ids if v is not None]
-        if not ids:
+        slots, ids = world.live()
+        n = len(ids)
+        if not n:
             return
         get = self._getters
-        slots = np.fromiter((world.slot_of[v] for v in ids), dtype=np.intp, count=len(ids))
-        xy = np.array(list(map(get["position"], ids)), dtype=np.float64)
-        world.x_m[slots] = xy[:, 0]
-        world.y_m[slots] = xy[:, 1]
-        world.heading_deg[slots] = np.fromiter(map(get["angle"], ids), np.float64, len(ids))
-        speed = np.fromiter(map(get["speed"], ids), np.float64, len(ids))
+        xy = np.fromiter(chain.from_iterable(map(get["position"], ids)), np.float64, 2 * n)
+        x, y = xy[0::2], xy[1::2]
+        fresh = world.depart_step[slots] == world.step
+        # a car whose position did not change at all stands: its speed is 0 and its lane the same (SUMO
+        # moves a car by its speed times the step), so speed and lane are read for the moving ones only
+        moved = fresh | (x != world.x_m[slots]) | (y != world.y_m[slots]) | world.is_ego[slots]
+        world.x_m[slots] = x
+        world.y_m[slots] = y
+        world.heading_deg[slots] = np.fromiter(map(get["angle"], ids), np.float64, n)
+        if moved.all():
+            mslots, mids = slots, ids
+        else:
+            mslots = slots[moved]
+            mids = [ids[i] for i in np.flatnonzero(moved).tolist()]
+        speed = np.zeros(n)
+        speed[moved] = np.fromiter(map(get["speed"], mids), np.float64, len(mids))
         # SUMO's acceleration is the speed change over the step: derived here instead of one more getter
         # per vehicle (a vehicle that departed this step has no previous speed: 0)
-        fresh = world.depart_step[slots] == world.step
         world.accel_mps2[slots] = np.where(fresh, 0.0, (speed - world.speed_mps[slots]) / self.step_s)
         world.speed_mps[slots] = speed
-        lanes = list(map(get["lane"], ids))
-        cache = self._lane_codes
-        codes = [cache.get(lane) or self._lane_code(world, lane) for lane in lanes]
-        world.edge_code[slots] = [c[0] for c in codes]
-        world.lane_index[slots] = [c[1] for c in codes]
+        lanes = self._lanes
+        lanes.world = world
+        rows = np.fromiter(map(lanes.__getitem__, map(get["lane"], mids)), np.intp, len(mids))
+        edge_code, lane_index = lanes.arrays()
+        world.edge_code[mslots] = edge_code[rows]
+        world.lane_index[mslots] = lane_index[rows]
         ego = world.slot_of.get(self.ego_id) if self.ego_id else None
         if ego is not None:
+            veh = self.sumo.vehicle
             world.lane_pos_m[ego] = veh.getLanePosition(self.ego_id)
             world.lateral_offset_m[ego] = veh.getLateralLanePosition(self.ego_id)
             world.signals[ego] = veh.getSignals(self.ego_id)
 
     def _fast_getters(self) -> dict:
-        """Per-vehicle getters; with libsumo its compiled functions directly, skipping the Python wrapper
-        around each (a fifth of the read time at 1000 vehicles). TraCI keeps its own methods."""
-        veh = self.sumo.vehicle
-        names = {"position": "getPosition", "angle": "getAngle", "speed": "getSpeed", "lane": "getLaneID"}
+        """Getters called for every vehicle (or light) each step; with libsumo its compiled functions
+        directly, skipping the Python wrapper around each (a fifth of the read time at 1000 vehicles).
+        TraCI keeps its own methods."""
+        names = {"position": ("vehicle", "getPosition"), "angle": ("vehicle", "getAngle"),
+                 "speed": ("vehicle", "getSpeed"), "lane": ("vehicle", "getLaneID"),
+                 "tls_state": ("trafficlight", "getRedYellowGreenState")}  # fmt: skip
         native = getattr(self.sumo, "_libsumo", None)
-        return {k: getattr(native, f"vehicle_{m}", None) or getattr(veh, m) for k, m in names.items()}
-
-    def _lane_code(self, world: World, lane: str) -> tuple[int, int]:
-        if not lane:
-            return (-1, -1)  # off the road network (an ego placed off-road); not cached
-        edge, _, idx = lane.rpartition("_")
-        code = self._lane_codes[lane] = (world.intern_edge(edge), int(idx) if idx.isdigit() else -1)
-        return code
+        return {
+            k: getattr(native, f"{d}_{m}", None) or getattr(getattr(self.sumo, d), m)
+            for k, (d, m) in names.items()
+        }
 
     def traffic_lights(self) -> tuple[list[str], list[str]]:
-        tls = self.sumo.trafficlight
-        ids = sorted(tls.getIDList())
-        return ids, [tls.getRedYellowGreenState(t) for t in ids]
+        """(ids, states) of every traffic light, sorted by id (the set of lights never changes in a run)."""
+        if self._tls_ids is None:
+            self._tls_ids = sorted(self.sumo.trafficlight.getIDList())
+        return list(self._tls_ids), list(map(self._getters["tls_state"], self._tls_ids))
 
     # -- ego -------------------------------------------------------------------------------------------------
+    def remove_vehicle(self, vid: str) -> None:
+        """Take a vehicle (or a pending insertion) out of SUMO; it leaves the world at the next step."""
+        self.sumo.vehicle.remove(vid)
+        self._removed.append(vid)
+
     def add_vehicle(self, vid: str, route: list[str], *, depart: float | str = "now", type_id: str | None = None,
                     depart_speed: str = "0", color=None) -> None:  # fmt: skip
         rid = f"route_{vid}"
@@ -178,10 +225,11 @@ class SumoBridge:
         move it by itself."""
         self.ego_id = EGO_ID
         vtype = self.sumo.vehicletype
-        vtype.copy("DEFAULT_VEHTYPE", "ego_car")
-        vtype.setLength("ego_car", length_m)
-        vtype.setWidth("ego_car", width_m)
-        self.add_vehicle(EGO_ID, route, depart=depart, type_id="ego_car", color=(255, 40, 40, 255))
+        if EGO_VTYPE not in vtype.getIDList():  # a scenario from elsewhere: SUMO's default car
+            vtype.copy("DEFAULT_VEHTYPE", EGO_VTYPE)
+        vtype.setLength(EGO_VTYPE, length_m)
+        vtype.setWidth(EGO_VTYPE, width_m)
+        self.add_vehicle(EGO_ID, route, depart=depart, type_id=EGO_VTYPE, color=(255, 40, 40, 255))
         if controlled:
             veh = self.sumo.vehicle
             veh.setSpeedMode(EGO_ID, 0)  # no SUMO safety checks: the physics decides

@@ -449,7 +449,7 @@ class VanetLayer:
             lane_position=min(lane + 1, 14) if lane >= 0 else -1,
             yaw_rate_dps=float(self.cam.yaw_rate_dps[s]),
         )
-        return ObuView(self.records, self.obu.heard[s], self._now_us, own, self.params.obu, self.frame_us, s)
+        return ObuView(self.records, self.obu.heard(s), self._now_us, own, self.params.obu, self.frame_us, s)
 
     def station_id_of(self, slot: int) -> int:
         """Current station id of a World slot (0 = no station)."""

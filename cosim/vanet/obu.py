@@ -138,30 +138,37 @@ class RecordStore:
 
 
 class ObuTables:
-    """For every receiver slot, the sequence number of the newest CAM decoded from every sender slot."""
+    """For every receiver slot, the sequence number of the newest CAM decoded from every sender slot.
+
+    Stored sender-major (``by_sender[sender, receiver]``): one window's deliveries come grouped by
+    transmission, so they are written almost sequentially; a receiver's row is read only for an OBU view."""
 
     def __init__(self, capacity: int):
         self.capacity = 0
-        self.heard = np.zeros((0, 0), dtype=np.int64)
+        self.by_sender = np.zeros((0, 0), dtype=np.int64)
         self.ensure_capacity(capacity)
 
     def ensure_capacity(self, capacity: int) -> None:
         if capacity > self.capacity:
-            heard = np.full((capacity, capacity), -1, dtype=np.int64)
-            heard[: self.capacity, : self.capacity] = self.heard
-            self.heard = heard
+            by_sender = np.full((capacity, capacity), -1, dtype=np.int64)
+            by_sender[: self.capacity, : self.capacity] = self.by_sender
+            self.by_sender = by_sender
             self.capacity = capacity
 
+    def heard(self, rx_slot: int) -> np.ndarray:
+        """(capacity,) sequence numbers of the newest CAM the receiver decoded from each sender slot (-1)."""
+        return self.by_sender[:, rx_slot].copy()
+
     def reset(self, rx_slots: np.ndarray) -> None:
-        self.heard[rx_slots, :] = -1
+        self.by_sender[:, rx_slots] = -1
 
     def deliver(self, rx_slots: np.ndarray, sender_slots: np.ndarray, seqs: np.ndarray) -> None:
         """Record decoded CAMs: one window's, so newer than any held and at most one per (receiver,
         sender) pair (a station sends once per window)."""
         if rx_slots.size:
-            idx = rx_slots.astype(np.int64) * self.capacity
-            idx += sender_slots
-            self.heard.reshape(-1)[idx] = seqs
+            idx = sender_slots.astype(np.int64) * self.capacity
+            idx += rx_slots
+            self.by_sender.reshape(-1)[idx] = seqs
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,7 @@ A reserved slot with no fresh CAM stays silent (its timeout still counts down); 
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 
@@ -149,26 +150,37 @@ def select_slots(
     b = len(stations)
     lo_g = np.asarray(lo_g, dtype=np.int64)
     width = np.asarray(hi_g, dtype=np.int64) - lo_g + 1
-    offs = np.arange(int(width.max()))
-    gs = lo_g[:, None] + offs[None, :]  # (B, W)
-    ks = gs % n_slots
+    w = int(width.max())
+    offs = np.arange(w)
+    # slot numbers and frames of lo_g + offs: the interval is at most a frame (+1), so it wraps at most once
+    f0, k0 = np.divmod(lo_g, n_slots)
+    ks = k0[:, None] + offs[None, :]  # (B, W)
+    wrap = ks >= n_slots
+    ks -= n_slots * wrap
     inside = offs[None, :] < width[:, None]
-    mine = np.zeros(gs.shape, dtype=bool)
+    mine = np.zeros(ks.shape, dtype=bool)
     rows = np.arange(b)
     own = np.asarray(own, dtype=np.int64)
     pos = (own - lo_g[:, None]) % n_slots
     hr, hc = np.nonzero((own >= 0) & (pos < width[:, None]))
     mine[hr, pos[hr, hc]] = True
-    st = np.asarray(stations)[:, None]
-    free = inside & ~mine & (map_until[st, ks] < gs // n_slots)
-    n_free = free.sum(axis=1)
+    st = np.asarray(stations, dtype=np.int64)
+    until = map_until.reshape(-1).take(ks + (st * map_until.shape[1])[:, None])
+    free = inside & ~mine & (until < wrap + f0[:, None])
+    n_free = np.count_nonzero(free, axis=1)
     u = rng.random(b)
-    cum = np.cumsum(free, axis=1)
     j = (u * n_free).astype(np.int64)
-    pos = np.argmax(cum > j[:, None], axis=1)  # the (j+1)-th free slot
+    # the (j+1)-th free slot of each row (rows without one are among ``few`` below)
+    at = np.flatnonzero(free)
+    pos = np.zeros(b, dtype=np.int64)
+    if at.size:
+        first = np.cumsum(n_free) - n_free
+        pos = at[np.minimum(first + j, at.size - 1)] - rows * w
     n_cand = n_free.copy()
     few = np.flatnonzero(n_free < min_candidates)
     if few.size:
+        st = st[:, None]
+        cum = np.cumsum(free[few], axis=1)
         # fill the candidate set with the slots of the farthest stations; none free: the farthest one
         taken = inside[few] & ~mine[few] & ~free[few]
         dist = np.where(taken, map_dist[st[few], ks[few]], -np.inf)
@@ -177,12 +189,12 @@ def select_slots(
         total = nf + np.minimum(min_candidates - nf, taken.sum(axis=1))
         jj = (u[few] * total).astype(np.int64)
         from_far = far[np.arange(few.size), np.clip(jj - nf, 0, far.shape[1] - 1)]
-        from_free = np.argmax(cum[few] > jj[:, None], axis=1)
+        from_free = np.argmax(cum > jj[:, None], axis=1)
         p = np.where(jj < nf, from_free, from_far)
         p = np.where(nf == 0, far[:, 0], p)
         pos[few] = p
         n_cand[few] = np.where(nf == 0, np.minimum(total, 1), total)
-    return gs[rows, pos], n_cand
+    return lo_g + pos, n_cand
 
 
 def select_slot(
@@ -374,13 +386,13 @@ class SotdmaMac:
         valid = slot >= 0
         cnt = valid.sum(axis=1)
         new = self.rate[stations].astype(np.int64)
-        # each row's reservations by nominal slot (stable: ties keep column order), unused columns last
-        by_nom = np.argsort(np.where(valid, nom, np.iinfo(np.int64).max), axis=1, kind="stable")
         shr = np.flatnonzero(new < cnt)
         if shr.size:
+            # each row's reservations by nominal slot (stable: ties keep column order), unused columns last
+            by_nom = np.argsort(np.where(valid[shr], nom[shr], np.iinfo(np.int64).max), axis=1, kind="stable")
             k = np.arange(r_max)[None, :]
             pick = np.round(k * cnt[shr, None] / new[shr, None]).astype(np.int64)
-            keep = by_nom[shr[:, None], np.minimum(pick, r_max - 1)]
+            keep = by_nom[np.arange(shr.size)[:, None], np.minimum(pick, r_max - 1)]
             kept = k < new[shr, None]
             st = stations[shr]
             for a, fill in zip(
@@ -392,34 +404,30 @@ class SotdmaMac:
         grow = np.flatnonzero(new > cnt)
         if grow.size == 0:
             return
-        # the new nominal slots one at a time, each in the middle of the largest gap (first of equal ones)
-        big = np.iinfo(np.int64).max
-        noms = np.sort(np.where(valid[grow], nom[grow], big), axis=1)
-        noms = np.concatenate([noms, np.full((grow.size, r_max), big)], axis=1)
-        c = cnt[grow].copy()
-        add = new[grow] - c
-        nss = self.nss[stations[grow]].astype(np.int64)
-        req_i, req_round, req_nom = [], [], []
-        gi = np.arange(grow.size)
-        for j in range(int(add.max())):
-            r = gi[add > j]
-            cr, nr = c[r], noms[r]
-            kk = np.arange(nr.shape[1])[None, :]
-            nxt = nr[np.arange(r.size)[:, None], np.where(kk + 1 < cr[:, None], kk + 1, 0)]
-            gaps = np.where(kk < cr[:, None], (nxt - nr) % n, -1)
-            gaps[gaps == 0] = n
-            kbest = np.argmax(gaps, axis=1)
-            at = np.arange(r.size)
-            nominal = np.where(cr > 0, (nr[at, kbest] + gaps[at, kbest] // 2) % n, nss[r])
-            noms[r, cr] = nominal
-            noms[r] = np.sort(noms[r], axis=1)
-            c[r] += 1
-            req_i.append(r)
-            req_round.append(np.full(r.size, j))
-            req_nom.append(nominal)
-        ri, rj, rn = np.concatenate(req_i), np.concatenate(req_round), np.concatenate(req_nom)
-        order = np.lexsort((rj, ri))  # station by station, as the requests were made
-        ri, rj, rn = ri[order], rj[order], rn[order]
+        # the new nominal slots one at a time, each in the middle of the largest gap (first of equal ones);
+        # a few stations with a few slots each: plain Python beats array rounds here
+        ri, rj, rn = [], [], []
+        nss = self.nss[stations[grow]].tolist()
+        for i, (v_row, n_row, add) in enumerate(
+            zip(valid[grow].tolist(), nom[grow].tolist(), (new[grow] - cnt[grow]).tolist(), strict=True)
+        ):
+            noms = sorted(x for x, v in zip(n_row, v_row, strict=True) if v)
+            for j in range(add):
+                c = len(noms)
+                if c == 0:
+                    nominal = nss[i]
+                else:
+                    best_gap, best_k = -1, 0
+                    for k in range(c):
+                        gap = (noms[k + 1 if k + 1 < c else 0] - noms[k]) % n or n
+                        if gap > best_gap:
+                            best_gap, best_k = gap, k
+                    nominal = (noms[best_k] + best_gap // 2) % n
+                bisect.insort(noms, nominal)
+                ri.append(i)
+                rj.append(j)
+                rn.append(nominal)
+        ri, rj, rn = np.array(ri, dtype=np.int64), np.array(rj, dtype=np.int64), np.array(rn, dtype=np.int64)
         # the j-th new nominal slot goes to the station's j-th unused column
         free_cols = np.argsort(valid[grow], axis=1, kind="stable")  # unused columns first, in order
         cols = free_cols[ri, rj]

@@ -135,3 +135,22 @@ def test_ego_write_back_makes_a_sumo_follower_brake(tmp_path):
         assert [e.kind for e in bridge.step(world) if e.kind.startswith("ego_")] == ["ego_on_road"]
     finally:
         bridge.close()
+
+
+def test_an_ego_standing_for_minutes_is_never_teleported_away():
+    """SUMO teleports a car that waits longer than time-to-teleport (120 s); a participant who stops must
+    stay in the traffic (the ego's vType disables it)."""
+    cfg = load_run_config(None, **{"scenario.map": str(shared_map("munich")), "scenario.demand.density": "low",
+                                   "duration_s": 180.0, "seed": 2, "ego.physics": "sumo",
+                                   "ego.lead_vehicle": False, "vanet": None})  # fmt: skip
+    with Simulation(cfg) as sim:
+        veh = sim.bridge.sumo.vehicle
+        while EGO_ID not in sim.world.slot_of:
+            sim.step()
+        veh.setSpeed(EGO_ID, 0.0)
+        events = []
+        for _ in range(1500):
+            sim.step()
+            events += [e for e in sim.events if e.vehicle == EGO_ID]
+        assert veh.getWaitingTime(EGO_ID) > 140
+        assert EGO_ID in sim.world.slot_of and not events, events
