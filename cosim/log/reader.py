@@ -95,18 +95,15 @@ def _columns(messages: list[dict]) -> dict[str, np.ndarray]:
                 cols[k].extend([v] * n)
     out = {}
     for k, v in cols.items():
-        arr = np.asarray(
-            [np.nan if x is None else x for x in v] if _numeric(v) else v,
-            dtype=None if _numeric(v) else object,
-        )
-        out[k] = arr
+        types = set(map(type, v))  # (bool is its own type: flags stay objects)
+        if types <= _NUMERIC_TYPES and types != {type(None)} and types:
+            out[k] = np.asarray([np.nan if x is None else x for x in v] if type(None) in types else v)
+        else:
+            out[k] = np.asarray(v, dtype=object)
     return out
 
 
-def _numeric(values: list) -> bool:
-    return all(
-        x is None or (isinstance(x, (int, float)) and not isinstance(x, bool)) for x in values
-    ) and any(x is not None for x in values)
+_NUMERIC_TYPES = {int, float, type(None)}
 
 
 def read(path: str | Path, topics: list[str] | None = None, keep_raw: bool = False) -> Log:
