@@ -21,7 +21,7 @@ BENCHES = [
     (
         "core",
         "Core loop vs bare SUMO on Helsinki (issues: core, VANET, ego)",
-        ["bench.bench_core", "--seconds", "60"],
+        ["bench.bench_core", "--seconds", "60", "--repeat", "2"],
     ),
     ("vanet", "VANET layer alone, synthetic traffic on Helsinki roads (issue: VANET)", ["bench.bench_vanet"]),
     ("ego", "MuJoCo ego cost (issue: ego)", ["bench.bench_ego"]),

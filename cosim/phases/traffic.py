@@ -33,10 +33,10 @@ REMOVE_MARGIN_M = 50.0
 PENDING_TIMEOUT_S = 10.0
 SAMPLE_STEP_M = 20.0  # lane-km is counted on points this far apart along each edge
 SPAWN_END_CLEAR_M = 5.0  # spawn spots keep this far from both ends of their edge [m]
-START_CLEAR_M = 60.0
+START_CLEAR_M = 60.0  # the first fill leaves this much room where the lead and the ego depart [m]
 REFILL_S = 120.0  # while the ego stands, generation is limited to the target count per this time [s]
 MOVING_MPS = 3.0  # below this the ego counts as standing: new SCVs may start anywhere in the ring
-LOCAL_M = 100.0  # a spot whose surroundings already hold the target density gets no new vehicle [m]  # no SCV is generated this close to the ego's start (the lead and ego depart there)
+LOCAL_M = 100.0  # a spot whose surroundings already hold the target density gets no new vehicle [m]
 
 
 class TrafficAroundEgo:
@@ -74,7 +74,7 @@ class TrafficAroundEgo:
         self.pt_x, self.pt_y, self.pt_w = (np.concatenate(a) for a in (xs, ys, ws))
 
     def _pool(self, comp: list) -> None:
-        """The scenario's pool routes, grouped by origin edge; an origin stands at its edge's midpoint."""
+        """The scenario's pool routes grouped by origin edge, and the spawn spots along those edges."""
         by_origin: dict[str, list[str]] = {}
         for el in ET.parse(self.sim.scenario.routes_file).getroot().iter("route"):
             rid = el.get("id", "")
