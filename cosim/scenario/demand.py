@@ -128,14 +128,22 @@ def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: fl
     def u_turn(a: str, b: str) -> bool:  # b is a's opposite direction (a car turns on the spot)
         return ends[a] == ends[b][::-1]
 
+    # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route
+    through = [
+        e.getID()
+        for e in comp
+        if any(not u_turn(e.getID(), o.getID()) for o in e.getOutgoing() if o.getID() in ends)
+    ]
+    dest_ids = through or comp_ids
     best: list[str] = []
-    for _ in range(6):  # a start whose every way out needs a U-turn (a dead end) is given up
+    for _ in range(6):  # a new start only when the route gets stuck (no leg without a U-turn)
         route = [starts[int(rng.integers(len(starts)))].getID()]
         total = length[route[0]]
+        stuck = False
         for _ in range(12):  # batches of candidate legs, routed together
             if total >= min_length_m:
                 return route
-            dests = [comp_ids[int(i)] for i in rng.integers(0, len(comp_ids), 8)]
+            dests = [dest_ids[int(i)] for i in rng.integers(0, len(dest_ids), 8)]
             legs = table.routes([(route[-1], d) for d in dests], net_file, workdir)
             for d in dests:
                 leg = legs.get((route[-1], d))
@@ -144,9 +152,12 @@ def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: fl
                 route.extend(leg[1:])
                 total += sum(length.get(e, 0.0) for e in leg[1:])
                 break
-        if total >= min_length_m:
-            return route
+            else:
+                stuck = True
+                break
         best = max(best, route, key=lambda r: sum(length.get(e, 0.0) for e in r))
+        if not stuck:  # as long as the batches allow on this map
+            break
     return best
 
 
