@@ -65,8 +65,10 @@ def main() -> None:
         print(f"== {key}: python -m {' '.join(cmd)}", flush=True)
         started = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
         proc = subprocess.run([sys.executable, "-m", *cmd], cwd=ROOT, capture_output=True, text=True)
+        # (TraCI's client prints "Retrying in 1 seconds" while SUMO starts: not a result)
+        out = "\n".join(ln for ln in proc.stdout.splitlines() if not ln.strip().startswith("Retrying in"))
         body = (
-            proc.stdout.strip()
+            out.strip()
             if proc.returncode == 0
             else f"FAILED (exit {proc.returncode}):\n```\n{proc.stderr[-2000:]}\n```"
         )
