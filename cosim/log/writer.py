@@ -22,6 +22,7 @@ import pickle
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -161,10 +162,18 @@ class McapLog:
         if self._file is not None:
             getattr(self._file, method)(*args)
             return
+        data = pickle.dumps((method, args), protocol=pickle.HIGHEST_PROTOCOL)
+        # Ctrl-C waits until the record is in the pipe: half a record would cost the writer the file's end
+        masked = threading.current_thread() is threading.main_thread()
+        if masked:
+            old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
-            pickle.dump((method, args), self._proc.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self._proc.stdin.write(data)
         except (BrokenPipeError, OSError):
             raise RuntimeError(f"the log writer of {self.path} stopped (its error is above)") from None
+        finally:
+            if masked:
+                signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
     def channel(self, topic: str, schema: dict | None = None) -> None:
         """Register ``topic`` now (with its own ``schema``; default: the topic's known one or a generic)."""

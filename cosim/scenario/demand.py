@@ -100,14 +100,6 @@ def _lanes_for_cars(edge) -> int:
     return sum(1 for lane in edge.getLanes() if lane.allows("passenger"))
 
 
-MAIN_ROADS = ("motorway", "primary", "secondary", "tertiary")
-
-
-def _highway(edge) -> str:
-    """The OSM highway value of an edge's type ('highway.primary|...' -> 'primary')."""
-    return (edge.getType() or "").split("|")[0].removeprefix("highway.")
-
-
 def is_spawn_edge(edge) -> bool:
     etype = edge.getType() or ""
     return any(etype == f"highway.{h}" or etype.startswith(f"highway.{h}|") for h in SPAWN_HIGHWAYS)
@@ -117,16 +109,13 @@ def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: fl
                      net_file: Path, workdir: Path) -> list[str]:  # fmt: skip
     """The ego's predefined route: A* legs to random destinations chained from a seeded start edge."""
     starts = [e for e in comp if is_spawn_edge(e) and e.getLength() > 40 and e.getSpeed() >= 8.0] or comp
-    # start on a main road where there is one: a side street's exit onto busy traffic can keep the lead
-    # and the participant waiting for minutes before the study even begins
-    main = [e for e in starts if _highway(e) in MAIN_ROADS]
-    starts = main or starts
     comp_ids = [e.getID() for e in comp]
     length = {e.getID(): e.getLength() for e in comp}
     ends = {e.getID(): (e.getFromNode().getID(), e.getToNode().getID()) for e in comp}
 
     def u_turn(a: str, b: str) -> bool:  # b is a's opposite direction (a car turns on the spot)
         return ends[a] == ends[b][::-1]
+
 
     # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route
     through = [
