@@ -116,7 +116,6 @@ def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: fl
     def u_turn(a: str, b: str) -> bool:  # b is a's opposite direction (a car turns on the spot)
         return ends[a] == ends[b][::-1]
 
-
     # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route
     through = [
         e.getID()
