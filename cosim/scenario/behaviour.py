@@ -49,7 +49,8 @@ class ScvBehaviour:
     # a driver waiting at a minor link goes when the traffic with priority stands still (a jam): without
     # it, queues that yield to each other around a block of junctions lock up until SUMO teleports them
     jammed_foe_speed_mps: float = 0.1  # priority traffic at or below this speed counts as standing [m/s]
-    jammed_foe_ignore_prob: float = 0.02  # per step, chance to go past standing priority traffic [-]
+    jammed_foe_ignore_prob: float = 0.0  # per step, chance to go past standing priority traffic [-] (off:
+    # SUMO cannot tell a jam from a car that merely stopped, and 0.02 made SCVs drive into a standing ego)
     stop_sign_stop_gap_m: float = 1.0  # where SCVs halt before a stop sign's line [m]
     stop_sign_wait_s: float = 1.0  # minimum standstill at a stop sign (paper: >= 2 frames) [s]
     accel_mps2: Dist = Dist(2.6, 0.4, 1.5, 3.5)  # max acceleration [m/s^2]

@@ -19,6 +19,7 @@ and removing those that fall out of range, as the paper's generator does (V.A).
 from __future__ import annotations
 
 import itertools
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -182,8 +183,7 @@ POOL_ROUTES_PER_ORIGIN = 4
 POOL_MIN_EDGE_M = 20.0  # room to insert on an origin edge
 
 
-def build_route_pool(comp: list, net_hash: str, table: RouteTable, net_file: Path,
-                     workdir: Path) -> list[tuple[str, ...]]:  # fmt: skip
+def build_route_pool(comp: list, table: RouteTable, net_file: Path, workdir: Path) -> list[tuple[str, ...]]:
     """A* routes from every spawn edge to a few destinations drawn from the map alone (not the seed), so
     every seed and every run of the map reuses the same routes from the table."""
     origins = [e.getID() for e in comp if is_spawn_edge(e) and e.getLength() > POOL_MIN_EDGE_M]
@@ -191,8 +191,9 @@ def build_route_pool(comp: list, net_hash: str, table: RouteTable, net_file: Pat
         raise CosimError(
             "the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on"
         )
-    rng = np.random.default_rng(int(net_hash[:12], 16) if net_hash else 0)
     dest_ids = [e.getID() for e in comp]
+    # seeded by the network's edges (not a cache key, which depends on where cosim is installed)
+    rng = np.random.default_rng(zlib.crc32(" ".join(dest_ids).encode()))
     pairs = [
         (o, dest_ids[int(j)]) for o in origins for j in rng.integers(0, len(dest_ids), POOL_ROUTES_PER_ORIGIN)
     ]
@@ -294,7 +295,7 @@ def _write_pool_demand(net, comp: list, ego_route: list[str], params: DemandPara
                        rng: np.random.Generator, table: RouteTable, net_file: Path, out: Path,
                        workdir: Path) -> Demand:  # fmt: skip
     """area: around_ego: the vehicle types, the ego's route and the route pool; no vehicles."""
-    pool = build_route_pool(comp, table.net_hash, table, net_file, workdir)
+    pool = build_route_pool(comp, table, net_file, workdir)
     lines = _routes_head(behaviour, rng, ego_route)
     lines += [f'    <route id="{POOL_ROUTE_PREFIX}{i}" edges="{" ".join(r)}"/>' for i, r in enumerate(pool)]
     lines.append("</routes>")
