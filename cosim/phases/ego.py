@@ -23,6 +23,7 @@ TLS_NEAR_M = 150.0  # a light nearer than this is looked up every step, farther 
 TLS_REFRESH_S = 1.0
 CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
+PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
 ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
@@ -75,36 +76,33 @@ class RoutePath:
         self.length_m = float(self.s[-1])
         self.limit_s = np.asarray([a for a, _ in limits])
         self.limit_v = np.asarray([b for _, b in limits])
-        self._hint = 0
+        self._last_s = 0.0  # arc position of the last projection
 
     def project(self, x: float, y: float) -> tuple[float, float]:
-        """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit."""
-        lo = max(0, self._hint - 20)
-        hi = min(len(self.xy) - 1, self._hint + 200)
-        a, b = self.xy[lo:hi], self.xy[lo + 1 : hi + 1]
-        d = b - a
-        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
-        t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
-        px, py = a[:, 0] + t * d[:, 0], a[:, 1] + t * d[:, 1]
-        dist2 = (px - x) ** 2 + (py - y) ** 2
-        k = int(np.argmin(dist2))
-        if k in (0, len(dist2) - 1) and dist2[k] > 400.0 and len(self.xy) > 220:  # lost: search everywhere
-            self._hint = 0
-            return self._project_all(x, y)
-        self._hint = lo + k
-        cross = d[k, 0] * (y - a[k, 1]) - d[k, 1] * (x - a[k, 0])
-        return float(self.s[lo + k] + t[k] * math.sqrt(seg2[k])), math.copysign(math.sqrt(dist2[k]), cross)
+        """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit.
 
-    def _project_all(self, x: float, y: float) -> tuple[float, float]:
-        a, b = self.xy[:-1], self.xy[1:]
+        The search is bounded by arc length around the last hit: a route that comes back past the same
+        place later must not capture the projection (the driver would steer for the later pass)."""
+        lo = max(0, int(np.searchsorted(self.s, self._last_s - PROJECT_BEHIND_M)) - 1)
+        hi = min(len(self.xy) - 1, max(lo + 1, int(np.searchsorted(self.s, self._last_s + PROJECT_AHEAD_M))))
+        s, offset, at_window_end = self._nearest(lo, hi, x, y)
+        if at_window_end and abs(offset) > 20.0 and hi - lo < len(self.xy) - 1:  # lost: search everywhere
+            s, offset, _ = self._nearest(0, len(self.xy) - 1, x, y)
+        self._last_s = s
+        return s, offset
+
+    def _nearest(self, lo: int, hi: int, x: float, y: float) -> tuple[float, float, bool]:
+        """Projection onto the segments from point ``lo`` to point ``hi``; also whether it fell on the
+        first or last of them."""
+        a, b = self.xy[lo:hi], self.xy[lo + 1 : hi + 1]
         d = b - a
         seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
         t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
         dist2 = (a[:, 0] + t * d[:, 0] - x) ** 2 + (a[:, 1] + t * d[:, 1] - y) ** 2
         k = int(np.argmin(dist2))
-        self._hint = k
         cross = d[k, 0] * (y - a[k, 1]) - d[k, 1] * (x - a[k, 0])
-        return float(self.s[k] + t[k] * math.sqrt(seg2[k])), math.copysign(math.sqrt(dist2[k]), cross)
+        s = float(self.s[lo + k] + t[k] * math.sqrt(seg2[k]))
+        return s, math.copysign(math.sqrt(dist2[k]), cross), k in (0, len(dist2) - 1)
 
     def window(self, s_from: float, s_to: float) -> np.ndarray:
         s_from, s_to = max(0.0, s_from), min(self.length_m, s_to)

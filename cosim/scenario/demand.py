@@ -19,6 +19,7 @@ and removing those that fall out of range, as the paper's generator does (V.A).
 from __future__ import annotations
 
 import itertools
+import math
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -106,17 +107,29 @@ def is_spawn_edge(edge) -> bool:
     return any(etype == f"highway.{h}" or etype.startswith(f"highway.{h}|") for h in SPAWN_HIGHWAYS)
 
 
+HAIRPIN_DEG = 150.0
+
+
+def _heading(p, q) -> float:
+    return math.degrees(math.atan2(q[1] - p[1], q[0] - p[0]))
+
+
 def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: float, table: RouteTable,
                      net_file: Path, workdir: Path) -> list[str]:  # fmt: skip
     """The ego's predefined route: A* legs to random destinations chained from a seeded start edge."""
     starts = [e for e in comp if is_spawn_edge(e) and e.getLength() > 40 and e.getSpeed() >= 8.0] or comp
     comp_ids = [e.getID() for e in comp]
     length = {e.getID(): e.getLength() for e in comp}
-    ends = {e.getID(): (e.getFromNode().getID(), e.getToNode().getID()) for e in comp}
+    # heading at each end of an edge: a turn sharper than HAIRPIN_DEG (a U-turn, or a hairpin into a
+    # parallel road that netconvert calls a left turn) makes the driver turn nearly on the spot
+    head_in = {e.getID(): _heading(e.getShape()[-2], e.getShape()[-1]) for e in comp}
+    head_out = {e.getID(): _heading(e.getShape()[0], e.getShape()[1]) for e in comp}
 
-    def u_turn(a: str, b: str) -> bool:  # b is a's opposite direction (a car turns on the spot)
-        return ends[a] == ends[b][::-1]
+    def u_turn(a: str, b: str) -> bool:
+        turn = abs((head_out[b] - head_in[a] + 180.0) % 360.0 - 180.0)
+        return turn > HAIRPIN_DEG
 
+    ends = set(length)
     # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route
     through = [
         e.getID()

@@ -23,6 +23,11 @@ LEAD_ID = "lead"
 EGO_VTYPE = "ego_car"  # the scenario's routes define it (cosim.scenario.demand), never teleported
 OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
 MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
+# A car at rest in MuJoCo still creeps by ~1e-5 m. A pose a hair behind the last one makes SUMO measure the
+# move along the route the long way round: a phantom speed, and a collision with the car ahead it stands
+# behind. At rest the ego's SUMO twin therefore keeps its pose until it moves by more than this [m].
+STANDSTILL_JITTER_M = 0.01
+STANDSTILL_SPEED_MPS = 0.05
 
 
 def _backend(use_traci: bool):
@@ -95,6 +100,7 @@ class SumoBridge:
         self.ego_on_road = True
         self._unmapped_steps = 0
         self._pose_off_road = False
+        self._ego_pose: tuple[float, float, float] | None = None  # last pose written to SUMO
         self._colliding: set[tuple[str, str]] = set()
         self._removed: list[str] = []  # removed by cosim this step
 
@@ -245,6 +251,11 @@ class SumoBridge:
         the ego is plainly on its path.
         """
         veh, sim = self.sumo.vehicle, self.sumo.simulation
+        last = self._ego_pose
+        if (last is not None and speed_mps < STANDSTILL_SPEED_MPS
+                and math.hypot(x_m - last[0], y_m - last[1]) < STANDSTILL_JITTER_M):  # fmt: skip
+            x_m, y_m, heading_deg = last
+        self._ego_pose = (x_m, y_m, heading_deg)
         try:
             if verify_on_road or self._pose_off_road:
                 # far from every lane: keep the SUMO twin where it last was on the road (SUMO is not meant

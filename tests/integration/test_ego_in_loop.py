@@ -20,11 +20,6 @@ ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.own_process
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="session 2: on the new default routes the scripted driver comes to rest "
-    "overlapping a car ahead (SUMO reports a collision at standstill); open, see the closing note",
-)
 def test_scripted_driver_300s_on_the_default_map(tmp_path):
     """No collision, never off the road, no red-light violation, lane keeping within 0.3 m on average."""
     cfg = load_run_config(ROOT / "configs" / "default.yaml", **{"duration_s": 300, "seed": 3,

@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import itertools
+import math
+from pathlib import Path
+
 import pytest
+import sumolib
 from testpaths import shared_map
 
 from cosim.scenario import build_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -61,3 +68,21 @@ def test_second_build_reuses_network_and_route_table(tmp_path):
     assert other["cache"]["network"] == "hit"  # netconvert not run again
     assert other["demand"]["routes_from_table"] > 0
     assert first["cache"]["network_key"] == other["cache"]["network_key"]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_ego_route_has_no_hairpin_turn(tmp_path, seed):
+    """The predefined route never turns back on itself: a U-turn, or on the default map a 'left turn' into
+    the parallel road 2 m away (seed 3), sent the scripted driver off the road."""
+    scn = build_scenario(ROOT / "configs" / "maps" / "krems.osm.gz", tmp_path, density="low", seed=seed,
+                         log=lambda *a: None)  # fmt: skip
+    net = sumolib.net.readNet(str(scn.net_file))
+    route = [net.getEdge(e) for e in scn.report["demand"]["ego_route"]]
+    assert sum(e.getLength() for e in route) > 5000
+
+    def heading(p, q):
+        return math.degrees(math.atan2(q[1] - p[1], q[0] - p[0]))
+
+    for a, b in itertools.pairwise(route):
+        turn = heading(*b.getShape()[:2]) - heading(*a.getShape()[-2:])
+        assert abs((turn + 180.0) % 360.0 - 180.0) < 150.0, (a.getID(), b.getID())
