@@ -69,7 +69,7 @@ class PathGeometry:
 
     @classmethod
     def of(cls, path_xy_m: np.ndarray) -> PathGeometry:
-        seg = np.diff(path_xy_m, axis=0)
+        seg = path_xy_m[1:] - path_xy_m[:-1]
         seg_len = np.maximum(np.hypot(seg[:, 0], seg[:, 1]), 1e-9)
         cum = np.empty(len(path_xy_m))
         cum[0] = 0.0
@@ -92,11 +92,11 @@ def path_errors(
     d = g.seg_xy_m
     rel = np.array([x_m, y_m]) - path_xy_m[:-1]
     t = np.einsum("ij,ij->i", rel, d) / (g.seg_len_m * g.seg_len_m)
-    t_clip = np.clip(t, 0.0, 1.0)
+    t_clip = np.minimum(np.maximum(t, 0.0), 1.0)  # np.clip, without its Python-level dispatch
     t_clip[0] = min(t[0], 1.0)  # extend the first segment backwards
     t_clip[-1] = max(t[-1], 0.0) if len(d) > 1 else t[-1]  # and the last one forwards
     off = rel - t_clip[:, None] * d  # from the projection to the point
-    i = int(np.argmin(np.einsum("ij,ij->i", off, off)))
+    i = int(np.einsum("ij,ij->i", off, off).argmin())
     di = d[i]
     seg_len = float(g.seg_len_m[i])
     lateral = (di[0] * rel[i, 1] - di[1] * rel[i, 0]) / seg_len  # > 0: point left of the segment direction
@@ -148,7 +148,7 @@ class Percept:
         path = np.asarray(self.path_xy_m, dtype=np.float64)
         if path.ndim != 2 or path.shape[1] != 2 or path.shape[0] < 2:
             raise ValueError(f"Percept.path_xy_m must have shape (M>=2, 2), got {path.shape}")
-        if not np.all(np.isfinite(path)):
+        if not np.isfinite(path).all():
             raise ValueError("Percept.path_xy_m must be finite")
         object.__setattr__(self, "path_xy_m", path)
         for name in ("t_s", "speed_mps", "x_m", "y_m", "yaw_rad", "accel_mps2", "yaw_rate_rps"):

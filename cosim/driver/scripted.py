@@ -224,6 +224,7 @@ class ScriptedDriver(Driver):
             self._rng = rng
         # Estimation errors start in their stationary distribution: [gap, rel. speed, desired speed, lateral].
         self._w = self._rng.standard_normal(4)
+        self._ou_coefs: tuple = (None, [])  # ((dt, correlation times), [(rho, sqrt(1 - rho^2))] per process)
         self._buf: deque[_Seen] = deque()
         self._t_last: float | None = None
         self._v_last = 0.0
@@ -307,10 +308,12 @@ class ScriptedDriver(Driver):
         prof = self.profile
         taus = (prof.perception_error_time_s, prof.perception_error_time_s, prof.speed_wander_time_s,
                 prof.lateral_wander_time_s)  # fmt: skip
+        if self._ou_coefs[0] != (dt_s, taus):  # the step is constant in a run: compute the factors once
+            rhos = [math.exp(-dt_s / tau) for tau in taus]
+            self._ou_coefs = ((dt_s, taus), [(rho, math.sqrt(1.0 - rho * rho)) for rho in rhos])
         eta = self._rng.standard_normal(4)
-        for i, tau in enumerate(taus):
-            rho = math.exp(-dt_s / tau)
-            self._w[i] = rho * self._w[i] + math.sqrt(1.0 - rho * rho) * eta[i]
+        for i, (rho, gain) in enumerate(self._ou_coefs[1]):
+            self._w[i] = rho * self._w[i] + gain * eta[i]
 
     def _perceive(self, p: Percept) -> _Seen:
         prof = self.profile
@@ -510,9 +513,11 @@ class ScriptedDriver(Driver):
         s = start + np.arange(0.0, horizon, _CURVE_STEP_M)  # resampled: robust to any vertex spacing
         x = np.interp(s, g.cum_m, path[:, 0])
         y = np.interp(s, g.cum_m, path[:, 1])
-        dx, dy = np.diff(x), np.diff(y)
+        dx, dy = x[1:] - x[:-1], y[1:] - y[:-1]
         turn = np.arctan2(dx[:-1] * dy[1:] - dy[:-1] * dx[1:], dx[:-1] * dx[1:] + dy[:-1] * dy[1:])  # [rad]
-        c = np.concatenate(([0.0], np.cumsum(turn)))
+        c = np.empty(len(turn) + 1)  # turning from the first sample on
+        c[0] = 0.0
+        np.cumsum(turn, out=c[1:])
         # mean curvature of window k, which spans [s_k, s_k + window]
         kappa = np.abs(c[n_win:] - c[:-n_win]) / _CURVE_WINDOW_M  # [1/m]
         v_cap = np.sqrt(self.profile.max_lat_accel_mps2 / np.maximum(kappa, 1e-6))
@@ -520,7 +525,7 @@ class ScriptedDriver(Driver):
         # their cap applies from the window's START (conservative: a curve is never entered too fast)
         dist = s[: len(v_cap)] - s0  # [m] from the car centre to each window's start
         under = dist <= 0.5
-        here = _CAP_GAIN_PER_S * (float(np.min(v_cap[under])) - v) if under.any() else math.inf
+        here = _CAP_GAIN_PER_S * (float(v_cap[under].min()) - v) if under.any() else math.inf
         v_cap, dist = v_cap[~under], dist[~under]
         v_a = np.sqrt(v_cap * v_cap + 2.0 * b * dist)
         a = np.where(
@@ -528,7 +533,7 @@ class ScriptedDriver(Driver):
             (v_cap * v_cap - v * v) / (2.0 * dist),
             -b * v / v_a + _CAP_GAIN_PER_S * (v_a - v),
         )
-        return min(float(np.min(a)), here) if len(a) else here
+        return min(float(a.min()), here) if len(a) else here
 
     # -- pedals ------------------------------------------------------------------------------------------------
     def _pedals(self, a_wanted: float, v: float, dt_s: float) -> tuple[float, float]:
@@ -567,7 +572,7 @@ class ScriptedDriver(Driver):
         s_goal = (
             p.path_progress_m - half_l + lookahead
         )  # the centre's projection, moved back to the rear axle
-        i = int(np.clip(np.searchsorted(cum, s_goal, side="right") - 1, 0, len(seg) - 1))
+        i = min(max(int(cum.searchsorted(s_goal, side="right")) - 1, 0), len(seg) - 1)
         length_i = float(seg_len[i])
         frac = (s_goal - cum[i]) / length_i  # may exceed 1 (or be < 0) beyond the path ends: extrapolate
         ux, uy = seg[i, 0] / length_i, seg[i, 1] / length_i

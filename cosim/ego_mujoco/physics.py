@@ -38,7 +38,6 @@ import math
 from collections.abc import Sequence
 
 import mujoco
-import numpy as np
 
 from cosim.ego_mujoco.car import (
     CHASSIS_BODY,
@@ -118,7 +117,9 @@ class EgoCar:
         self._sensordata, self._ctrl = d.sensordata, d.ctrl
         self._qfrc, self._xfrc = d.qfrc_applied, d.xfrc_applied[self._body]
         self._frictionloss, self._armature = m.dof_frictionloss, m.dof_armature
-        self._solreffriction = m.pair_solreffriction
+        self._opt = m.opt  # a new wrapper object on every ``m.opt`` access: take it once
+        # per tyre pair: its (stiffness, damping) row of pair_solreffriction
+        self._friction_rows = [m.pair_solreffriction[i] for i in self._pair]
         # Model fields the controller rewrites at run time; reset() restores them so that a reset car
         # replays bit-identically to a fresh one.
         self._pristine = (
@@ -143,10 +144,27 @@ class EgoCar:
 
         pt = p.powertrain
         self._driven = {"front": [0, 1], "rear": [2, 3], "all": [0, 1, 2, 3]}[pt.driven_axle]
+        self._is_driven = [i in self._driven for i in range(4)]
+        # derived parameters the control update reads 500 times per simulated second
+        self._max_steer_rad, self._max_steer_rate = p.max_steer_rad, p.max_steer_rate_rad_s
         br = p.brakes
         front, rear = 0.5 * br.front_share * br.max_torque_nm, 0.5 * (1.0 - br.front_share) * br.max_torque_nm
         self._brake_max = [front, front, rear, rear]
         self._drag_k = 0.5 * p.air_density_kg_m3 * p.drag_coefficient * p.frontal_area_m2  # [kg/m]
+        # the per-wheel constants above, one tuple per wheel for the control update's loop
+        self._wheels = list(
+            zip(
+                self._spin_dof,
+                self._is_driven,
+                self._sphere_radius,
+                self._wheel_xy,
+                self._brake_max,
+                self._stiffness,
+                self._r_normal,
+                strict=True,
+            )
+        )
+        self._state: EgoState | None = None  # state() of the current MuJoCo state, built on first request
         self.reset(0.0, 0.0, 0.0, 0.0)
 
     # -- public API ------------------------------------------------------------------------------------------
@@ -177,6 +195,7 @@ class EgoCar:
         mujoco.mj_forward(m, d)  # poses and tyre loads for the first control update
         self._apply_controls(0.0, 0.0, 0.0, self._chunk * self.timestep_s)
         mujoco.mj_forward(m, d)
+        self._state = None
 
     def step(self, throttle: float, brake: float, steer: float, duration_s: float) -> EgoState:
         """Integrate ``round(duration_s / timestep_s)`` steps with constant pedals and steering target.
@@ -200,6 +219,7 @@ class EgoCar:
             self._apply_controls(throttle, brake, steer, k * self.timestep_s)
             mujoco.mj_step(m, d, k)
             n -= k
+        self._state = None
         return self.state()
 
     @property
@@ -207,20 +227,28 @@ class EgoCar:
         return float(self.data.time)
 
     def state(self) -> EgoState:
+        """The car's state now (the same immutable object until the next ``step`` or ``reset``)."""
+        if self._state is None:
+            self._state = self._read_state()
+        return self._state
+
+    def _read_state(self) -> EgoState:
         d, p = self.data, self.params
         q, v = self._qadr, self._vadr
+        qpos, qvel = self._qpos, self._qvel
         r00, _, _, r10, _, _, r20, r21, r22 = self._xmat.tolist()
         yaw = math.atan2(r10, r00)
         c, s = math.cos(yaw), math.sin(yaw)
-        vx, vy = float(d.qvel[v]), float(d.qvel[v + 1])
-        ax, ay = float(d.qacc[v]), float(d.qacc[v + 1])
-        steer = bicycle_angle(float(d.qpos[self._steer_qpos[0]]), float(d.qpos[self._steer_qpos[1]]))
-        loads = np.array([d.sensordata[a] for a in self._load_adr])
+        vx, vy = qvel[v : v + 2].tolist()
+        ax, ay = self._qacc[v : v + 2].tolist()
+        steer = bicycle_angle(float(qpos[self._steer_qpos[0]]), float(qpos[self._steer_qpos[1]]))
+        loads = self._sensordata[self._load_adr]
+        x, y, z = qpos[q : q + 3].tolist()
         return EgoState(
             t_s=float(d.time),
-            x_m=float(d.qpos[q]),
-            y_m=float(d.qpos[q + 1]),
-            z_m=float(d.qpos[q + 2]),
+            x_m=x,
+            y_m=y,
+            z_m=z,
             yaw_rad=yaw,
             pitch_rad=-math.asin(max(-1.0, min(1.0, r20))),
             roll_rad=math.atan2(r21, r22),
@@ -228,9 +256,9 @@ class EgoCar:
             lateral_speed_mps=-s * vx + c * vy,
             accel_mps2=c * ax + s * ay,
             lateral_accel_mps2=-s * ax + c * ay,
-            yaw_rate_rps=float(self._xmat[6:9] @ d.qvel[v + 3 : v + 6]),  # body angular velocity -> world z
+            yaw_rate_rps=float(self._xmat[6:9] @ qvel[v + 3 : v + 6]),  # body angular velocity -> world z
             steer_rad=steer,
-            wheel_speed_radps=d.qvel[self._spin_dof].copy(),
+            wheel_speed_radps=qvel[self._spin_dof],  # fancy indexing: a copy
             wheel_load_n=loads,
             in_contact=loads > 0.0,
             gear=self._pt.gear,
@@ -243,24 +271,26 @@ class EgoCar:
         """Set every run-time input of the next ``dt_s`` from the current state (scalar code: 4 wheels)."""
         p = self.params
         tyre = p.tyre
-        qvel, v = self._qvel, self._vadr
+        v = self._vadr
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._xmat.tolist()
-        vx, vy, vz, wlx, wly, wlz = qvel[v : v + 6].tolist()
-        acc_x, acc_y = float(self._qacc[v]), float(self._qacc[v + 1])
+        qvel = self._qvel.tolist()  # Python floats: one conversion instead of one per element read
+        vx, vy, _, wlx, wly, wlz = qvel[v : v + 6]
+        acc_x, acc_y = self._qacc[v : v + 2].tolist()
         # Longitudinal acceleration of the last step; ABS and TCS regulate the tyre force, so their
         # torque caps add the torque that spins the wheel (and engaged driveline) down or up with the car.
         accel = r00 * acc_x + r10 * acc_y
+        accel_up, accel_down = max(accel, 0.0), max(-accel, 0.0)
         omega_x = r00 * wlx + r01 * wly + r02 * wlz  # chassis angular velocity in the world frame
         omega_y = r10 * wlx + r11 * wly + r12 * wlz
         omega_z = r20 * wlx + r21 * wly + r22 * wlz
         yaw = math.atan2(r10, r00)
-        sensordata = self._sensordata
-        loads = [max(float(sensordata[a]), 0.0) for a in self._load_adr]
-        spins = [float(qvel[dof]) for dof in self._spin_dof]
+        sensordata = self._sensordata.tolist()
+        loads = [max(sensordata[a], 0.0) for a in self._load_adr]
+        spins = [qvel[dof] for dof in self._spin_dof]
 
         # Steering: rate-limited bicycle angle -> Ackermann angles of the two knuckle servos.
-        step = p.max_steer_rate_rad_s * dt_s
-        self._delta_cmd += min(max(steer * p.max_steer_rad - self._delta_cmd, -step), step)
+        step = self._max_steer_rate * dt_s
+        self._delta_cmd += min(max(steer * self._max_steer_rad - self._delta_cmd, -step), step)
         left, right = ackermann_angles(self._delta_cmd, p.wheelbase_m, p.track_front_m)
         self._ctrl[self._steer_act[0]] = left
         self._ctrl[self._steer_act[1]] = right
@@ -282,31 +312,32 @@ class EgoCar:
 
         k_vert = tyre.vertical_stiffness_n_per_m
         vmin, mu = tyre.min_slip_speed_mps, tyre.mu
+        rolling = tyre.rolling_resistance
         use_tcs, use_abs = p.powertrain.traction_control, p.brakes.abs
-        c = [0.0] * 4
-        for i in range(4):
+        abs_margin, wheel_inertia = p.brakes.abs_margin, p.wheel_inertia_kgm2
+        qfrc, frictionloss, armatures = self._qfrc, self._frictionloss, self._armature
+        cr = [0.0] * 4  # c * R_normal per wheel
+        for i, (dof, is_driven, radius, (wx, wy), brake_max, stiffness, r_normal) in enumerate(self._wheels):
             fz = loads[i]
-            lever = self._sphere_radius[i] - 0.5 * fz / k_vert  # wheel centre -> contact point [m]
+            lever = radius - 0.5 * fz / k_vert  # wheel centre -> contact point [m]
             friction_torque = mu * fz * lever  # [N m] torque that saturates the tyre
-            dof = self._spin_dof[i]
             # Drive torque (+ traction control) and driveline inertia on the driven wheels.
             torque = 0.0
-            if i in driven:
+            if is_driven:
                 torque = wheel_torque
-                self._armature[dof] = armature
+                armatures[dof] = armature
                 if use_tcs:
-                    inertia = p.wheel_inertia_kgm2 + armature
-                    torque = min(torque, TCS_MARGIN * friction_torque + inertia * max(accel, 0.0) / lever)
-            self._qfrc[dof] = torque
+                    inertia = wheel_inertia + armature
+                    torque = min(torque, TCS_MARGIN * friction_torque + inertia * accel_up / lever)
+            qfrc[dof] = torque
             # Brakes (+ ABS) and rolling resistance as joint friction loss.
-            brake_torque = brake * self._brake_max[i]
+            brake_torque = brake * brake_max
             if use_abs:
-                cap = p.brakes.abs_margin * friction_torque + p.wheel_inertia_kgm2 * max(-accel, 0.0) / lever
+                cap = abs_margin * friction_torque + wheel_inertia * accel_down / lever
                 brake_torque = min(brake_torque, cap)
-            self._frictionloss[dof] = brake_torque + tyre.rolling_resistance * fz * lever
+            frictionloss[dof] = brake_torque + rolling * fz * lever
             # Tyre slip stiffness (see the module docstring): wheel centre velocity, then the contact
             # point's = centre + omega_wheel x (0, 0, -lever), omega_wheel = chassis + spin about the axle.
-            wx, wy = self._wheel_xy[i]
             rx, ry, rz = r00 * wx + r01 * wy, r10 * wx + r11 * wy, r20 * wx + r21 * wy
             cx = vx + omega_y * rz - omega_z * ry
             cy = vy + omega_z * rx - omega_x * rz
@@ -314,12 +345,12 @@ class EgoCar:
             ox = omega_x - spins[i] * math.sin(heading)
             oy = omega_y + spins[i] * math.cos(heading)
             slip = math.hypot(cx - lever * oy, cy + lever * ox)
-            ci = self._stiffness[i] / max(math.hypot(cx, cy), vmin)
+            ci = stiffness / max(math.hypot(cx, cy), vmin)
             ci = min(ci, SLIDE_DEMAND * mu * fz / max(slip, 1e-3))
-            c[i] = max(ci, 1.0)  # [N s/m]; a wheel in the air keeps a well-defined (unused) contact
-        impratio = max(MIN_IMPRATIO, max(c[i] * self._r_normal[i] for i in range(4)) / self._b_max)
-        self.model.opt.impratio = impratio
-        for i in range(4):
-            row = self._solreffriction[self._pair[i]]
+            # c [N s/m] >= 1: a wheel in the air keeps a well-defined (unused) contact
+            cr[i] = max(ci, 1.0) * r_normal
+        impratio = max(MIN_IMPRATIO, max(cr) / self._b_max)
+        self._opt.impratio = impratio
+        for i, row in enumerate(self._friction_rows):
             row[0] = -1.0  # direct format; the stiffness is unused for friction rows
-            row[1] = -c[i] * self._r_normal[i] / impratio * TYRE_IMPEDANCE  # b = damping / dmax
+            row[1] = -cr[i] / impratio * TYRE_IMPEDANCE  # b = damping / dmax

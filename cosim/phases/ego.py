@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -83,68 +84,77 @@ class RoutePath:
 
         The search is bounded by arc length around the last hit: a route that comes back past the same
         place later must not capture the projection (the driver would steer for the later pass)."""
-        lo = max(0, int(np.searchsorted(self.s, self._last_s - PROJECT_BEHIND_M)) - 1)
-        hi = min(len(self.xy) - 1, max(lo + 1, int(np.searchsorted(self.s, self._last_s + PROJECT_AHEAD_M))))
+        lo = max(0, int(self.s.searchsorted(self._last_s - PROJECT_BEHIND_M)) - 1)
+        hi = min(len(self.xy) - 1, max(lo + 1, int(self.s.searchsorted(self._last_s + PROJECT_AHEAD_M))))
         s, offset, at_window_end = self._nearest(lo, hi, x, y)
         if at_window_end and abs(offset) > 20.0 and hi - lo < len(self.xy) - 1:  # lost: search everywhere
             s, offset, _ = self._nearest(0, len(self.xy) - 1, x, y)
         self._last_s = s
         return s, offset
 
+    @cached_property
+    def _segments(self) -> tuple[np.ndarray, ...]:
+        """Per segment (point i to i + 1): start x, start y, direction x, direction y, squared length (at
+        least 1e-12) and length; constants of the route, computed once for every projection."""
+        a, d = self.xy[:-1], np.diff(self.xy, axis=0)
+        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+        return a[:, 0].copy(), a[:, 1].copy(), d[:, 0].copy(), d[:, 1].copy(), seg2, np.sqrt(seg2)
+
     def _nearest(self, lo: int, hi: int, x: float, y: float) -> tuple[float, float, bool]:
         """Projection onto the segments from point ``lo`` to point ``hi``; also whether it fell on the
         first or last of them."""
-        a, b = self.xy[lo:hi], self.xy[lo + 1 : hi + 1]
-        d = b - a
-        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
-        t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
-        dist2 = (a[:, 0] + t * d[:, 0] - x) ** 2 + (a[:, 1] + t * d[:, 1] - y) ** 2
-        k = int(np.argmin(dist2))
-        cross = d[k, 0] * (y - a[k, 1]) - d[k, 1] * (x - a[k, 0])
-        s = float(self.s[lo + k] + t[k] * math.sqrt(seg2[k]))
+        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
+        t = np.minimum(np.maximum(((x - ax) * dx + (y - ay) * dy) / seg2, 0.0), 1.0)
+        dist2 = (ax + t * dx - x) ** 2 + (ay + t * dy - y) ** 2
+        k = int(dist2.argmin())
+        cross = dx[k] * (y - ay[k]) - dy[k] * (x - ax[k])
+        s = float(self.s[lo + k] + t[k] * seg_len[k])
         return s, math.copysign(math.sqrt(dist2[k]), cross), k in (0, len(dist2) - 1)
 
     def window(self, s_from: float, s_to: float) -> np.ndarray:
+        """The path from arc position ``s_from`` to ``s_to``: both ends interpolated, the points between."""
         s_from, s_to = max(0.0, s_from), min(self.length_m, s_to)
-        inside = (self.s > s_from) & (self.s < s_to)
-        ends = np.stack(
-            [
-                np.interp([s_from, s_to], self.s, self.xy[:, 0]),
-                np.interp([s_from, s_to], self.s, self.xy[:, 1]),
-            ],
-            axis=1,
-        )
-        out = np.vstack([ends[:1], self.xy[inside], ends[1:]])
-        return out if len(out) >= 2 else np.vstack([out, out + 0.1])
+        first = int(self.s.searchsorted(s_from, side="right"))  # the points strictly inside
+        inner = self.xy[first : max(first, int(self.s.searchsorted(s_to, side="left")))]
+        out = np.empty((len(inner) + 2, 2))
+        out[1:-1] = inner
+        out[0, 0], out[-1, 0] = np.interp([s_from, s_to], self.s, self.xy[:, 0]).tolist()
+        out[0, 1], out[-1, 1] = np.interp([s_from, s_to], self.s, self.xy[:, 1]).tolist()
+        return out
 
     def vehicles_on_path(self, xs: np.ndarray, ys: np.ndarray, s_from: float, s_to: float,
                          half_width_m: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Arc positions of points lying on the path between ``s_from`` and ``s_to`` (within
         ``half_width_m`` of its centre line); returns (index into xs, arc position) of those points."""
-        lo = max(0, int(np.searchsorted(self.s, s_from)) - 1)
-        hi = min(len(self.s) - 1, int(np.searchsorted(self.s, s_to)) + 1)
-        a, b = self.xy[lo:hi], self.xy[lo + 1 : hi + 1]
-        if len(a) == 0 or len(xs) == 0:
+        lo = max(0, int(self.s.searchsorted(s_from)) - 1)
+        hi = min(len(self.s) - 1, int(self.s.searchsorted(s_to)) + 1)
+        if hi <= lo or len(xs) == 0:
             return np.zeros(0, dtype=int), np.zeros(0)
-        d = b - a
-        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
         px, py = xs[:, None], ys[:, None]
-        t = np.clip(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
-        dist2 = (a[:, 0] + t * d[:, 0] - px) ** 2 + (a[:, 1] + t * d[:, 1] - py) ** 2
-        k = np.argmin(dist2, axis=1)
+        t = np.minimum(np.maximum(((px - ax) * dx + (py - ay) * dy) / seg2, 0.0), 1.0)
+        dist2 = (ax + t * dx - px) ** 2 + (ay + t * dy - py) ** 2
+        k = dist2.argmin(axis=1)
         rows = np.arange(len(xs))
-        s_at = self.s[lo + k] + t[rows, k] * np.sqrt(seg2[k])
+        s_at = self.s[lo + k] + t[rows, k] * seg_len[k]
         on = (dist2[rows, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
         return rows[on], s_at[on]
 
     def speed_limit(self, s: float) -> tuple[float, float | None, float]:
         """(limit here, next different limit or None, distance to it)."""
-        i = max(0, int(np.searchsorted(self.limit_s, s, side="right")) - 1)
-        here = float(self.limit_v[i])
-        for j in range(i + 1, len(self.limit_v)):
-            if abs(self.limit_v[j] - here) > 0.1:
-                return here, float(self.limit_v[j]), float(self.limit_s[j] - s)
-        return here, None, math.inf
+        i = max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)
+        j = self._next_limit_change[i]
+        if j is None:
+            return float(self.limit_v[i]), None, math.inf
+        return float(self.limit_v[i]), float(self.limit_v[j]), float(self.limit_s[j] - s)
+
+    @cached_property
+    def _next_limit_change(self) -> list[int | None]:
+        """For each limit, the index of the next one that differs from it by more than 0.1 m/s (or None)."""
+        v = self.limit_v
+        return [
+            next((j for j in range(i + 1, len(v)) if abs(v[j] - v[i]) > 0.1), None) for i in range(len(v))
+        ]
 
 
 def _length(pts) -> float:
@@ -290,14 +300,15 @@ class EgoController:
     def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
         """The nearest vehicle whose rear is on the ego's own path ahead: what a driver sees in front of
         them, whichever SUMO lane it is on (a car the ego is about to change lanes behind, one in a bend)."""
-        near = w.valid & (np.hypot(w.x_m - cx, w.y_m - cy) < PREVIEW_AHEAD_M + 10.0)
-        near[ego_slot] = False
-        idx = np.flatnonzero(near)
+        live, _ = w.live()
+        near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < PREVIEW_AHEAD_M + 10.0]
+        idx = near[near != ego_slot]
         if idx.size == 0:
             return {}
-        ux, uy = w.heading_unit()
-        rear_x = w.x_m[idx] - ux[idx] * w.length_m[idx]
-        rear_y = w.y_m[idx] - uy[idx] * w.length_m[idx]
+        heading = np.radians(w.heading_deg[idx])  # World.heading_unit, for these vehicles only
+        length = w.length_m[idx]
+        rear_x = w.x_m[idx] - np.sin(heading) * length
+        rear_y = w.y_m[idx] - np.cos(heading) * length
         half = PATH_HALF_WIDTH_M + 0.5 * w.width_m[idx].mean()
         rows, s_rear = self.path.vehicles_on_path(
             rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half

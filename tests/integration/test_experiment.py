@@ -79,7 +79,9 @@ def test_compare_detects_a_drifted_trace(short_experiment, tmp_path):
 @pytest.mark.own_process
 def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     """With no shadowing, the time gap system B shows from CAMs matches SUMO's SSM TGAP for the same pair:
-    median error < 0.1 s, 90 % within 0.3 s (the rest: CAM age before a sudden speed change)."""
+    median error < 0.1 s, 90 % within 0.3 s (the rest: CAM age before a sudden speed change, the chord
+    across a sharp bend). Compared where B warns at all (own speed >= its min_speed_mps): below, gap / speed
+    is ill-conditioned (0.2 m of gap at 0.5 m/s is 0.4 s)."""
     cfg = load_run_config(ROOT / "configs" / "default.yaml", **{
         "duration_s": 120, "scenario.demand.density": "low", "ego.physics": "sumo", "adas.system": "B",
         "vanet.channel.shadowing": "none"})  # fmt: skip
@@ -91,11 +93,14 @@ def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     g = ET.parse(ssm).getroot().find("globalMeasures")
     ts = np.array(g.find("timeSpan").get("values").split(), float)
     tgap = np.array([np.nan if v == "NA" else float(v) for v in g.find("TGAPSpan").get("values").split()])
-    a = read(tmp_path / "run.mcap", topics=["/adas/state"])["/adas/state"]
+    log = read(tmp_path / "run.mcap", topics=["/adas/state", "/ego/state"])
+    a, ego = log["/adas/state"], log["/ego/state"]
     shown = a["b_gap_s"].astype(float)
     sumo = np.interp(a["t_s"], ts, tgap, left=np.nan, right=np.nan)
+    speed = np.interp(a["t_s"], ego["t_s"], ego["speed_mps"].astype(float))
     both = (
-        np.isfinite(shown)
+        (speed >= cfg.adas.v2v.min_speed_mps)
+        & np.isfinite(shown)
         & np.isfinite(sumo)
         & (shown < 9.9)
         & (sumo < 9.9)
