@@ -83,17 +83,28 @@ def along_heading_gap_m(
 
 
 def chord_gap_m(
-    ego_x_m: float, ego_y_m: float, ego_heading_deg: float, rear_x_m: float, rear_y_m: float
+    ego_x_m: float,
+    ego_y_m: float,
+    ego_heading_deg: float,
+    rear_x_m: float,
+    rear_y_m: float,
+    leader_heading_deg: float,
 ) -> float:
     """Bumper-to-bumper gap [m] as a V2V system computes it from two positions: the straight distance from
-    the ego's front bumper to the leader's rear, negative when that point is not ahead of the ego.
+    the ego's front bumper to the leader's rear, negative when the leader is not ahead of the ego.
 
     Unlike the projection on the ego's heading it stays close to the distance along the road in curves
-    (a chord, not a projection that shrinks to zero after a 90-degree bend).
+    (a chord, not a projection that shrinks to zero after a 90-degree bend). The leader is ahead when its
+    rear is ahead along the ego's heading, or the ego's front is behind it along the leader's heading: a
+    leader that has turned out of a sharp bend the ego is still entering is ahead though it is abeam.
     """
-    ahead = along_heading_gap_m(ego_x_m, ego_y_m, ego_heading_deg, rear_x_m, rear_y_m)
+    ahead = along_heading_gap_m(ego_x_m, ego_y_m, ego_heading_deg, rear_x_m, rear_y_m) > 0.0
+    turned = abs((leader_heading_deg - ego_heading_deg + 180.0) % 360.0 - 180.0)
+    if not ahead and turned < 150.0:  # (one driving the other way is never ahead)
+        # the ego's front as the leader sees it: behind its rear?
+        ahead = along_heading_gap_m(rear_x_m, rear_y_m, leader_heading_deg, ego_x_m, ego_y_m) < 0.0
     dist = math.hypot(rear_x_m - ego_x_m, rear_y_m - ego_y_m)
-    return dist if ahead > 0.0 else -dist
+    return dist if ahead else -dist
 
 
 def time_gap_s(gap_m: float, speed_mps: float, cap_s: float) -> float:

@@ -132,13 +132,15 @@ def cam_gap_m(ego: VehicleState, cam: CamData, age_s: float, mode: str) -> float
     """Gap [m] from the ego's front bumper to the leader's rear as estimated from a CAM of age ``age_s``."""
     fx, fy = extrapolate_cam(cam, age_s, mode)
     ux, uy = heading_unit(cam.heading_deg)
-    return chord_gap_m(ego.x_m, ego.y_m, ego.heading_deg, fx - ux * cam.length_m, fy - uy * cam.length_m)
+    return chord_gap_m(
+        ego.x_m, ego.y_m, ego.heading_deg, fx - ux * cam.length_m, fy - uy * cam.length_m, cam.heading_deg
+    )
 
 
 def ground_truth_gap_m(ego: VehicleState, leader: VehicleState) -> float:
     """Same geometry as system B, on the true states [m]."""
     rx, ry = leader.rear_xy()
-    return chord_gap_m(ego.x_m, ego.y_m, ego.heading_deg, rx, ry)
+    return chord_gap_m(ego.x_m, ego.y_m, ego.heading_deg, rx, ry, leader.heading_deg)
 
 
 def ground_truth_time_gap(

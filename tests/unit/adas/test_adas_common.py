@@ -6,7 +6,7 @@ import pytest
 import shapely
 
 from cosim.adas import BuildingIndex, VehicleState, along_heading_gap_m
-from cosim.adas.common import EventRecorder, heading_unit, left_unit
+from cosim.adas.common import EventRecorder, chord_gap_m, heading_unit, left_unit
 from cosim.world import World
 
 
@@ -24,6 +24,18 @@ def test_rear_point_and_gap():
     # ego heading east at the origin: the rear point (6, 20) is 6 m ahead along the heading
     assert along_heading_gap_m(0.0, 0.0, 90.0, 6.0, 20.0) == pytest.approx(6.0)
     assert along_heading_gap_m(0.0, 0.0, 270.0, 6.0, 20.0) == pytest.approx(-6.0)
+
+
+def test_chord_gap_counts_a_leader_out_of_a_sharp_bend_as_ahead():
+    """Ego heading east at the origin. A leader that has turned left (110 deg) and drives north 30 m away,
+    its rear just abeam of the ego's front, is ahead: V2V showed a 0-s time gap there (Krems, a left turn)."""
+    assert chord_gap_m(0.0, 0.0, 90.0, -1.0, 30.0, 344.0) == pytest.approx(30.017, abs=1e-3)
+    # a car in the next lane overlapping the ego (same heading, rear 2 m behind the ego's front) is not ahead
+    assert chord_gap_m(0.0, 0.0, 90.0, -2.0, 3.5, 90.0) < 0.0
+    # nor one that drives the other way past the ego's front
+    assert chord_gap_m(0.0, 0.0, 90.0, -1.0, 3.5, 270.0) < 0.0
+    # straight ahead: the distance
+    assert chord_gap_m(0.0, 0.0, 90.0, 20.0, 0.0, 90.0) == pytest.approx(20.0)
 
 
 def test_from_world():
