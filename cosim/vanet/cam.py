@@ -203,12 +203,25 @@ CAM_FIELDS: dict[str, np.dtype] = {
 }
 
 
-def empty_cam_arrays(n: int) -> dict[str, np.ndarray]:
-    return {name: np.zeros(n, dtype=dt) for name, dt in CAM_FIELDS.items()}
+# The same fields as one record: a batch of CAMs moves between stores in one gather / scatter, not one per field.
+CAM_DTYPE = np.dtype(list(CAM_FIELDS.items()))
+
+
+def empty_cam_arrays(n: int) -> np.ndarray:
+    """n zeroed CAMs: a CAM_DTYPE array, indexed by field name like a dict of CAM_FIELDS arrays."""
+    return np.zeros(n, dtype=CAM_DTYPE)
 
 
 def quantize_heading(heading_deg: np.ndarray) -> np.ndarray:
-    return (np.round(np.mod(heading_deg, 360.0) * 10.0).astype(np.int64) % 3600).astype(np.uint16)
+    return (np.rint(np.mod(heading_deg, 360.0) * 10.0).astype(np.int64) % 3600).astype(np.uint16)
+
+
+def _round_clip(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """np.clip(np.round(x), lo, hi) without the Python-level wrappers of round and clip (the per-call cost
+    of a small batch): round(x) with 0 decimals is rint(x), clip is maximum then minimum, NaN included."""
+    r = np.rint(x)
+    np.maximum(r, lo, out=r)
+    return np.minimum(r, hi, out=r)
 
 
 def exterior_lights_from_sumo(signals: np.ndarray) -> np.ndarray:
@@ -300,7 +313,7 @@ class CamGenerator:
         self, now_ms: int, active: np.ndarray, x_m: np.ndarray, y_m: np.ndarray, heading_deg: np.ndarray
     ):
         """Track yaw rate and path history every base step (the CAM content needs them)."""
-        idx = np.flatnonzero(active)
+        idx = active.nonzero()[0]
         if idx.size == 0:
             return
         prev_h = self.prev_heading_deg[idx]
@@ -339,7 +352,7 @@ class CamGenerator:
         gen = np.zeros(cap, dtype=bool)
         lf = np.zeros(cap, dtype=bool)
         trig = np.zeros(cap, dtype=np.uint8)
-        idx = np.flatnonzero(active[:cap])
+        idx = active[:cap].nonzero()[0]
         if idx.size == 0:
             return CamDecision(gen, lf, trig)
         last = self.last_gen_ms[idx]
@@ -362,7 +375,7 @@ class CamGenerator:
         # T_GenCam bookkeeping
         tg = self.t_gen_cam_ms[idx]
         left = self.n_short_left[idx]
-        tg = np.where(cond1, np.clip(elapsed, self.tmin_ms, self.tmax_ms), tg)
+        tg = np.where(cond1, np.minimum(np.maximum(elapsed, self.tmin_ms), self.tmax_ms), tg)
         left = np.where(cond1, p.n_gen_cam, left)
         short_used = cond2 & (tg < self.tmax_ms)
         left = np.where(short_used, left - 1, left)
@@ -402,8 +415,8 @@ class CamGenerator:
         width_m: np.ndarray,
         lane_index: np.ndarray,
         signals: np.ndarray,
-    ) -> dict[str, np.ndarray]:
-        """CAM fields (ETSI units) of the stations in ``slots``; other inputs are full (capacity,) arrays."""
+    ) -> np.ndarray:
+        """CAMs (CAM_DTYPE, ETSI units) of the stations in ``slots``; other inputs are full (capacity,) arrays."""
         p = self.params
         n = slots.size
         out = empty_cam_arrays(n)
@@ -413,19 +426,19 @@ class CamGenerator:
         out["station_type"][:] = p.station_type
         out["gen_ms"][:] = now_ms
         out["generation_delta_time"][:] = now_ms % 65536
-        out["ref_x_cm"][:] = np.round(x_m[slots] * 100.0).astype(np.int64)
-        out["ref_y_cm"][:] = np.round(y_m[slots] * 100.0).astype(np.int64)
+        out["ref_x_cm"][:] = np.rint(x_m[slots] * 100.0).astype(np.int64)
+        out["ref_y_cm"][:] = np.rint(y_m[slots] * 100.0).astype(np.int64)
         out["heading_01deg"][:] = quantize_heading(heading_deg[slots])
-        out["speed_001mps"][:] = np.clip(np.round(np.abs(v) * 100.0), 0, 16382)
+        out["speed_001mps"][:] = _round_clip(np.abs(v) * 100.0, 0, 16382)
         out["drive_direction"][:] = np.where(v < 0, DRIVE_BACKWARD, DRIVE_FORWARD)
-        out["length_01m"][:] = np.clip(np.round(length_m[slots] * 10.0), 1, 1022)
-        out["width_01m"][:] = np.clip(np.round(width_m[slots] * 10.0), 1, 61)
-        out["long_accel_01mps2"][:] = np.clip(np.round(a * 10.0), -160, 160)
+        out["length_01m"][:] = _round_clip(length_m[slots] * 10.0, 1, 1022)
+        out["width_01m"][:] = _round_clip(width_m[slots] * 10.0, 1, 61)
+        out["long_accel_01mps2"][:] = _round_clip(a * 10.0, -160, 160)
         yaw = self.yaw_rate_dps[slots]
-        out["yaw_rate_001degps"][:] = np.clip(np.round(yaw * 100.0), -32766, 32766)
+        out["yaw_rate_001degps"][:] = _round_clip(yaw * 100.0, -32766, 32766)
         with np.errstate(divide="ignore", invalid="ignore"):
             curv = np.where(np.abs(v) > 0.1, np.radians(yaw) / np.abs(v), 0.0)  # [1/m]
-        out["curvature"][:] = np.clip(np.round(curv * 10000.0), -1023, 1022)
+        out["curvature"][:] = _round_clip(curv * 10000.0, -1023, 1022)
         sig = signals[slots].astype(np.int64)
         braking = ((sig & _SUMO_BRAKELIGHT) != 0) | (a <= -p.brake_pedal_decel_mps2)
         acc = np.where(braking, ACC_BRAKE_PEDAL, 0)

@@ -500,24 +500,28 @@ class PolarShadowing:
         total = int(cnt.sum())
         if total == 0:
             return
-        rep = np.repeat(np.arange(pi.size), cnt)
-        within = np.arange(total) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-        bins = np.mod(b0[rep] + within, self.n_bins)
-        exr, eyr = exv[rep], eyv[rep]
-        ux, uy = self.ux[bins], self.uy[bins]
-        denom = ux * eyr - uy * exr
+        # one (edge, bin) pair per bin an edge spans; per-edge values are repeated, not gathered, and the
+        # numerator of the ray parameter is per edge (the same products as per pair: bit-identical)
+        bins = np.arange(total)
+        bins += np.repeat(b0 - (np.cumsum(cnt) - cnt), cnt)
+        bins %= self.n_bins
+        exr, eyr = np.repeat(exv, cnt), np.repeat(eyv, cnt)
+        denom = self.ux[bins] * eyr
+        denom -= self.uy[bins] * exr
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = (axk[rep] * eyr - ayk[rep] * exr) / denom
+            t = np.repeat(axk * eyv - ayk * exv, cnt) / denom
         ok = (t > 0.0) & (t <= R) & np.isfinite(t)
-        t, bins, prow = t[ok], bins[ok], pi[rep][ok]
-        flat = prow * self.n_bins + bins
         nb = self.n_bins
+        flat = np.repeat(pi * nb, cnt)
+        flat += bins
         if self.model == "los":
+            # misses as inf rather than compressed away: the minimum per cell is the same, and cheaper
             depth = np.full(len(rows) * nb, np.inf, dtype=np.float64)
-            np.minimum.at(depth, flat, t)
+            np.minimum.at(depth, flat, np.where(ok, t, np.inf))
             self.depth2[rows] = (depth * depth).reshape(len(rows), nb).astype(np.float32)
             return
-        s = sign[rep][ok]
+        t, flat = t[ok], flat[ok]
+        s = np.repeat(sign, cnt)[ok]
         order = np.lexsort((t, flat))
         flat, t, s = flat[order], t[order], s[order]
         start = np.flatnonzero(np.r_[True, flat[1:] != flat[:-1]])
@@ -550,7 +554,7 @@ class PolarShadowing:
             self._cell_touched = np.insert(self._cell_touched, at, touched)
         pos = np.searchsorted(self._cell_keys, cell_key)
         inside = np.zeros(len(tx_xy), dtype=bool)
-        test = np.flatnonzero(self._cell_touched[pos])
+        test = self._cell_touched[pos].nonzero()[0]
         if test.size:
             inside[test] = self.b.containing_count(tx_xy[test]) > 0
         return inside
@@ -621,7 +625,7 @@ class PolarShadowing:
         tx_rows = self.rows_for(tx_xy)
         rep = self.rep_xy[tx_rows].astype(np.float32)
         flat = np.flatnonzero(mask)
-        per_row = np.count_nonzero(mask, axis=1)  # flat is row-major: per-row values by repeat, not gather
+        per_row = mask.sum(axis=1)  # flat is row-major: per-row values by repeat, not gather
         ri = flat - np.repeat(np.arange(0, mask.size, n_rx), per_row)
         buf = self._scratch
         shape = flat.shape
@@ -808,7 +812,7 @@ def _slot_sums(rows: np.ndarray, starts: np.ndarray, dtype) -> np.ndarray:
     """Sums of consecutive row runs (run i starts at row starts[i]) in row order, like bincount's; far
     faster than np.add.reduceat along axis 0 when most runs are a single row."""
     total = rows[starts].astype(dtype)
-    size = np.diff(np.r_[starts, len(rows)])
+    size = np.diff(starts, append=len(rows))
     for j in range(1, int(size.max())):
         runs = np.flatnonzero(size > j)
         total[runs] += rows[starts[runs] + j]
@@ -990,7 +994,7 @@ class Aether:
         dy = np.subtract(rx_y[None, :], tx32[:, 1:2], out=dx)
         d2 += np.multiply(dy, dy, out=dx)
         cand = d2 <= np.float32(self.link_range_m * self.link_range_m)
-        own = np.flatnonzero(col >= 0)
+        own = (col >= 0).nonzero()[0]
         cand[own, col[own]] = False  # a transmitter never receives itself
         loss = blocked = p0 = None
         if self._general:
@@ -1034,9 +1038,13 @@ class Aether:
         # slots of the block: rows sorted by group (stable) for per-(slot, receiver) sums
         order = np.argsort(gi, kind="stable")
         gs = gi[order]
-        starts = np.flatnonzero(np.r_[True, gs[1:] != gs[:-1]])
+        change = np.empty(n_tx, dtype=bool)  # (np.r_ costs more than the rest of this together)
+        np.not_equal(gs[1:], gs[:-1], out=change[1:])
+        change[0] = True
+        starts = change.nonzero()[0]
+        change[0] = False
         lg = np.empty(n_tx, dtype=np.intp)
-        lg[order] = np.cumsum(np.r_[False, gs[1:] != gs[:-1]])
+        lg[order] = np.cumsum(change)
         sorted_rows = bool(np.all(order == np.arange(n_tx)))
         # half duplex: the receiver transmits in the same slot
         sending = np.zeros((starts.size, n_rx), dtype=bool)

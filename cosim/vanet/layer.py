@@ -39,7 +39,7 @@ import shapely
 
 from cosim.vanet.cam import CAM_FIELDS, CamGenerator, CamParams, empty_cam_arrays
 from cosim.vanet.channel import Aether, ChannelParams
-from cosim.vanet.obu import ObuParams, ObuTables, ObuView, OwnState, RecordStore
+from cosim.vanet.obu import RECORD_DTYPE, ObuParams, ObuTables, ObuView, OwnState, RecordStore
 from cosim.vanet.sotdma import SotdmaMac, SotdmaParams, report_rate
 from cosim.world import World
 
@@ -154,7 +154,8 @@ class VanetLayer:
         self._inbox: tuple[np.ndarray, ...] | None = None
         self._dt_us: int | None = None
         self._now_us = 0
-        self._frame_acc: dict[int, np.ndarray] = {}  # frame -> [busy, multi, tx, airtime_us]
+        self._frame_acc: dict[int, list[int]] = {}  # frame -> [busy, multi, tx, airtime_us]
+        self._no_load_rows = _empty(LOAD_COLUMNS)  # most steps complete no frame (zero-length: shareable)
         self._next_load_frame: int | None = None
 
     # -- capacity / stations ---------------------------------------------------------------------------------
@@ -180,7 +181,9 @@ class VanetLayer:
             self.known_valid = grow(self.known_valid, False)
             self.known_depart = grow(self.known_depart, -1)
             self.pending = grow(self.pending, False)
-            self.pending_cam = {k: grow(v, 0) for k, v in self.pending_cam.items()}
+            pending_cam = empty_cam_arrays(capacity)
+            pending_cam[:old] = self.pending_cam[:old]
+            self.pending_cam = pending_cam
         self.cam.ensure_capacity(capacity)
         self.mac.ensure_capacity(capacity)
         self.obu.ensure_capacity(capacity)
@@ -203,8 +206,8 @@ class VanetLayer:
         valid = world.valid[:cap]
         kv = self.known_valid[:cap]
         replaced = valid & kv & (world.depart_step[:cap] != self.known_depart[:cap])
-        left = np.flatnonzero(kv & (~valid | replaced))
-        came = np.flatnonzero(valid & (~kv | replaced))
+        left = (kv & (~valid | replaced)).nonzero()[0]
+        came = (valid & (~kv | replaced)).nonzero()[0]
         if left.size:
             self.mac.stop(left)
             self.pending[left] = False
@@ -267,7 +270,7 @@ class VanetLayer:
         n_gen = n_drop = 0
         if now_ms % self.cam.check_ms == 0:
             dec = self.cam.check(now_ms, valid, x, y, world.heading_deg[:cap], world.speed_mps[:cap])
-            slots = np.flatnonzero(dec.generate[:cap])
+            slots = dec.generate[:cap].nonzero()[0]
             if slots.size:
                 f = self.cam.build(
                     slots,
@@ -287,8 +290,7 @@ class VanetLayer:
                 )
                 n_gen = int(slots.size)
                 n_drop = int(np.count_nonzero(self.pending[slots]))
-                for name in CAM_FIELDS:
-                    self.pending_cam[name][slots] = f[name]
+                self.pending_cam[slots] = f
                 self.pending[slots] = True
                 rates = report_rate(
                     self.cam.t_gen_cam_ms[slots], self.frame_ms, self.params.sotdma.max_report_rate
@@ -301,21 +303,20 @@ class VanetLayer:
         self.mac.enter(g_lo)
         tx = self.mac.transmissions(g_lo, g_hi, self.pending)
         tx_us = self.slot_start_us(tx.g)
-        rec = {name: self.pending_cam[name][tx.station] for name in CAM_FIELDS}
-        rec.update(
-            sender_slot=tx.station,
-            g=tx.g,
-            tx_us=tx_us,
-            rx_us=tx_us + self.slot_us,
-            timeout=tx.timeout,
-            offset=tx.offset,
-        )
+        rec = np.empty(tx.g.size, dtype=RECORD_DTYPE)
+        rec[list(CAM_FIELDS)] = self.pending_cam[tx.station]  # RECORD_DTYPE starts with the CAM fields
+        rec["sender_slot"] = tx.station
+        rec["g"] = tx.g
+        rec["tx_us"] = tx_us
+        rec["rx_us"] = tx_us + self.slot_us
+        rec["timeout"] = tx.timeout
+        rec["offset"] = tx.offset
         seqs = self.records.append(rec, now_us)
         t3 = clock()
         timing["sotdma"] = t3 - t2
 
         # 4. channel
-        active = np.flatnonzero(valid)
+        active = valid.nonzero()[0]
         st_xy = np.stack([x[active], y[active]], axis=1)
         tx_xy = np.stack([x[tx.station], y[tx.station]], axis=1)
         links = self.aether.links(tx_xy, tx.station, tx.g, st_xy, active)
@@ -372,7 +373,7 @@ class VanetLayer:
         mode = self.params.rx_log
         if mode == "none":
             return _empty(RX_COLUMNS)
-        batch = links.batch(np.flatnonzero(world.is_ego[active]) if mode == "ego" else None)
+        batch = links.batch(world.is_ego[active].nonzero()[0] if mode == "ego" else None)
         lt, rs = batch.tx, active[batch.rx]
         dist, outcome, power = batch.distance_m, batch.outcome, batch.power_dbm
         # per-transmission values first, then one gather per column
@@ -403,20 +404,24 @@ class VanetLayer:
         if tx.g.size:
             air = self.params.sotdma.air_times_us(rec["size_bytes"])
             frames = tx.g // n
-            for f in np.unique(frames).tolist():
-                m = frames == f
-                _, counts = np.unique(tx.g[m], return_counts=True)
-                acc = self._frame_acc.setdefault(f, np.zeros(4, dtype=np.int64))
-                acc += [counts.size, int(np.count_nonzero(counts >= 2)), int(m.sum()), int(air[m].sum())]
+            # tx.g is sorted: a window inside one frame (the usual case) needs no per-frame masks
+            one_frame = frames[0] == frames[-1]
+            for f in [int(frames[0])] if one_frame else np.unique(frames).tolist():
+                g, a = (tx.g, air) if one_frame else (tx.g[frames == f], air[frames == f])
+                _, counts = np.unique(g, return_counts=True)
+                add = (counts.size, int(np.count_nonzero(counts >= 2)), g.size, int(a.sum()))
+                self._frame_acc[f] = [
+                    x + y for x, y in zip(self._frame_acc.get(f, [0, 0, 0, 0]), add, strict=True)
+                ]
         done_until = t_hi // self.frame_us  # frames < done_until are complete
         rows = []
         while self._next_load_frame is not None and self._next_load_frame < done_until:
             f = self._next_load_frame
-            acc = self._frame_acc.pop(f, np.zeros(4, dtype=np.int64))
+            acc = self._frame_acc.pop(f, [0, 0, 0, 0])
             rows.append((f, acc))
             self._next_load_frame += 1
         if not rows:
-            return _empty(LOAD_COLUMNS)
+            return dict(self._no_load_rows)
         fr = np.array([r[0] for r in rows], dtype=np.int64)
         a = np.array([r[1] for r in rows], dtype=np.int64)
         return {

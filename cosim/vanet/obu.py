@@ -82,6 +82,17 @@ RECORD_FIELDS: dict[str, np.dtype] = {
     "timeout": np.dtype(np.int8),  # announced slot timeout [frames]
     "offset": np.dtype(np.int32),  # announced slot offset [slots]
 }
+RECORD_DTYPE = np.dtype(list(RECORD_FIELDS.items()))  # CAM_DTYPE's fields first, then the ones above
+
+
+def record_array(rec: dict[str, np.ndarray] | np.ndarray) -> np.ndarray:
+    """Records as a RECORD_DTYPE array (from a dict of RECORD_FIELDS arrays of shape (n,) or as is)."""
+    if isinstance(rec, np.ndarray):
+        return rec
+    out = np.zeros(len(rec["rx_us"]), dtype=RECORD_DTYPE)
+    for name in RECORD_FIELDS:
+        out[name] = rec[name]
+    return out
 
 
 class RecordStore:
@@ -95,7 +106,7 @@ class RecordStore:
         self.horizon_us = int(horizon_us)
         self.cap = int(capacity)
         self.next_seq = 0
-        self.data = {name: np.zeros(self.cap, dtype=dt) for name, dt in RECORD_FIELDS.items()}
+        self.data = np.zeros(self.cap, dtype=RECORD_DTYPE)
 
     def _grow(self, need: int) -> None:
         cap = self.cap
@@ -104,14 +115,13 @@ class RecordStore:
         old = self.cap
         first = max(0, self.next_seq - old)
         seqs = np.arange(first, self.next_seq)
-        for name, arr in self.data.items():
-            new = np.zeros(cap, dtype=arr.dtype)
-            new[seqs % cap] = arr[seqs % old]
-            self.data[name] = new
+        new = np.zeros(cap, dtype=RECORD_DTYPE)
+        new[seqs % cap] = self.data[seqs % old]
+        self.data = new
         self.cap = cap
 
-    def append(self, rec: dict[str, np.ndarray], now_us: int) -> np.ndarray:
-        """Store n records (every RECORD_FIELDS array of shape (n,)); returns their sequence numbers."""
+    def append(self, rec: dict[str, np.ndarray] | np.ndarray, now_us: int) -> np.ndarray:
+        """Store n records (see ``record_array``); returns their sequence numbers."""
         n = len(rec["rx_us"])
         if n == 0:
             return np.zeros(0, dtype=np.int64)
@@ -123,9 +133,7 @@ class RecordStore:
         ):
             self._grow(2 * (self.cap + n))
         seqs = np.arange(self.next_seq, self.next_seq + n, dtype=np.int64)
-        pos = seqs % self.cap
-        for name, arr in self.data.items():
-            arr[pos] = rec[name]
+        self.data[seqs % self.cap] = record_array(rec)
         self.next_seq += n
         return seqs
 
@@ -133,8 +141,8 @@ class RecordStore:
         return (seqs >= 0) & (seqs >= self.next_seq - self.cap) & (seqs < self.next_seq)
 
     def get(self, seqs: np.ndarray) -> dict[str, np.ndarray]:
-        pos = np.asarray(seqs, dtype=np.int64) % self.cap
-        return {name: arr[pos] for name, arr in self.data.items()}
+        rec = self.data[np.asarray(seqs, dtype=np.int64) % self.cap]
+        return {name: rec[name] for name in RECORD_FIELDS}
 
 
 class ObuTables:

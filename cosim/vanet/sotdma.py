@@ -126,7 +126,7 @@ class SotdmaParams:
 def report_rate(t_gen_cam_ms: np.ndarray, frame_ms: int, max_rate: int) -> np.ndarray:
     """Slots per frame that carry a CAM every T_GenCam: clamp(ceil(frame / T_GenCam), 1, max_rate)."""
     t = np.maximum(np.asarray(t_gen_cam_ms, dtype=np.int64), 1)
-    return np.clip(-(-frame_ms // t), 1, max_rate).astype(np.int16)
+    return np.minimum(np.maximum(-(-frame_ms // t), 1), max_rate).astype(np.int16)  # np.clip costs 3x
 
 
 def select_slots(
@@ -167,7 +167,7 @@ def select_slots(
     st = np.asarray(stations, dtype=np.int64)
     until = map_until.reshape(-1).take(ks + (st * map_until.shape[1])[:, None])
     free = inside & ~mine & (until < wrap + f0[:, None])
-    n_free = np.count_nonzero(free, axis=1)
+    n_free = free.sum(axis=1)  # count_nonzero(axis=...) is a Python-level wrapper around the same
     u = rng.random(b)
     j = (u * n_free).astype(np.int64)
     # the (j+1)-th free slot of each row (rows without one are among ``few`` below)
@@ -177,7 +177,7 @@ def select_slots(
         first = np.cumsum(n_free) - n_free
         pos = at[np.minimum(first + j, at.size - 1)] - rows * w
     n_cand = n_free.copy()
-    few = np.flatnonzero(n_free < min_candidates)
+    few = (n_free < min_candidates).nonzero()[0]
     if few.size:
         st = st[:, None]
         cum = np.cumsum(free[few], axis=1)
@@ -226,6 +226,7 @@ def select_slot(
 
 
 IDLE, LISTENING, ACTIVE = 0, 1, 2
+_NO_SLOT = np.iinfo(np.int64).max  # sorts after every global slot index (np.iinfo per call is slow)
 
 
 @dataclass
@@ -331,10 +332,9 @@ class SotdmaMac:
             self.p.timeout_min_frames, self.p.timeout_max_frames + 1, size=s.size
         )
         # requests of one station in one batch whose intervals overlap may have met: redo one by one
-        rows = np.unique(s)
-        r = np.sort(self.res_slot[rows], axis=1)
-        dup = rows[np.any((r[:, 1:] == r[:, :-1]) & (r[:, 1:] >= 0), axis=1)]
-        for st in dup.tolist():
+        r = np.sort(self.res_slot[s], axis=1)
+        met = ((r[:, 1:] == r[:, :-1]) & (r[:, 1:] >= 0)).any(axis=1)
+        for st in np.unique(s[met]).tolist() if met.any() else ():
             for i in np.flatnonzero(s == st).tolist():
                 row = self.res_slot[st].astype(np.int64)
                 if np.count_nonzero(row == row[j[i]]) > 1:
@@ -386,12 +386,12 @@ class SotdmaMac:
         valid = slot >= 0
         cnt = valid.sum(axis=1)
         new = self.rate[stations].astype(np.int64)
-        shr = np.flatnonzero(new < cnt)
+        shr = (new < cnt).nonzero()[0]
         if shr.size:
             # each row's reservations by nominal slot (stable: ties keep column order), unused columns last
-            by_nom = np.argsort(np.where(valid[shr], nom[shr], np.iinfo(np.int64).max), axis=1, kind="stable")
+            by_nom = np.argsort(np.where(valid[shr], nom[shr], _NO_SLOT), axis=1, kind="stable")
             k = np.arange(r_max)[None, :]
-            pick = np.round(k * cnt[shr, None] / new[shr, None]).astype(np.int64)
+            pick = np.rint(k * cnt[shr, None] / new[shr, None]).astype(np.int64)
             keep = by_nom[np.arange(shr.size)[:, None], np.minimum(pick, r_max - 1)]
             kept = k < new[shr, None]
             st = stations[shr]
@@ -401,7 +401,7 @@ class SotdmaMac:
                 strict=True,
             ):
                 a[st] = np.where(kept, a[st[:, None], keep], fill)
-        grow = np.flatnonzero(new > cnt)
+        grow = (new > cnt).nonzero()[0]
         if grow.size == 0:
             return
         # the new nominal slots one at a time, each in the middle of the largest gap (first of equal ones);
@@ -443,7 +443,7 @@ class SotdmaMac:
         interval jittering between 0.4 and 0.5 s would otherwise change it every few CAMs); stations that
         are still listening just take the new rate.
         """
-        rates = np.clip(rates, 1, self.r_max).astype(np.int16)
+        rates = np.minimum(np.maximum(rates, 1), self.r_max).astype(np.int16)
         cur = self.rate[slots]
         active = self.state[slots] == ACTIVE
         change = ~active | (rates > cur) | (rates <= cur // 2)
@@ -456,7 +456,7 @@ class SotdmaMac:
 
     def enter(self, g_now: int) -> np.ndarray:
         """Network entry for every listening station whose initialization phase is over; returns them."""
-        ready = np.flatnonzero((self.state == LISTENING) & (self.listen_end_g <= g_now))
+        ready = ((self.state == LISTENING) & (self.listen_end_g <= g_now)).nonzero()[0]
         if ready.size:
             self._enter(ready, g_now)
         return ready
@@ -498,7 +498,7 @@ class SotdmaMac:
         cont = tau > 0
         self.res_timeout[st[cont], j[cont]] = tau[cont] - 1
         self.res_next_g[st[cont], j[cont]] = g[cont] + n
-        resel = np.flatnonzero(~cont)
+        resel = (~cont).nonzero()[0]
         if resel.size:
             rs, rj, rg = st[resel], j[resel], g[resel]
             delta = self._delta(np.maximum(self.rate[rs].astype(np.int64), 1))
@@ -508,17 +508,17 @@ class SotdmaMac:
             new_g = self._assign(rs, rj, nominal, centre, delta, rg + 1)
             offset[resel] = new_g - rg
         # first frame after entry / re-plan: announce the offset to the station's next slot
-        ff = np.flatnonzero(sends & cont & (g < self.first_frame_end_g[st]))
+        ff = (sends & cont & (g < self.first_frame_end_g[st])).nonzero()[0]
         if ff.size:
             # the nearest later slot of the station: a later use in this window or a next reservation
-            big = np.iinfo(np.int64).max
+            big = _NO_SLOT
             gf = g[ff]
             res = self.res_next_g[st[ff]]
             nearest = np.where(res > gf[:, None], res, big).min(axis=1)
             pos = np.full(self.capacity, -1, dtype=np.int64)
             pos[st[ff]] = np.arange(ff.size)
             p = pos[st]
-            later = np.flatnonzero(p >= 0)
+            later = (p >= 0).nonzero()[0]
             later = later[g[later] > gf[p[later]]]
             np.minimum.at(nearest, p[later], g[later])
             offset[ff] = np.where(nearest < big, nearest - gf, 0)
@@ -551,7 +551,7 @@ class SotdmaMac:
         md[cell] = dist_m
         ann_tx = offset != 0
         if ann_tx.any():
-            ann = np.flatnonzero(ann_tx[link_tx])
+            ann = ann_tx[link_tx].nonzero()[0]
             gt = g[link_tx[ann]] + offset[link_tx[ann]].astype(np.int64)
             cell = rx[ann].astype(np.int64) * n + gt % n
             np.maximum.at(mu, cell, (gt // n).astype(np.int32))
