@@ -28,7 +28,7 @@ BENCHES = [
     (
         "experiment",
         "make experiment: the paper's protocol, 4 x 15 min (issue: experiment)",
-        ["bench.bench_experiment"],
+        ["bench.bench_experiment", "--repeat", "3"],
     ),
     ("sweep", "Sweep throughput, local pool vs Ray (issue: sweeps)", ["bench.bench_sweep"]),
     ("render", "3D view frame rate (issue: 3D view)", ["bench.bench_render", "--seconds", "20"]),
