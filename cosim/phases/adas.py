@@ -120,11 +120,14 @@ class AdasPhase:
         found = obu.find_leader(self.config.leader_criteria)
         if found is not None:
             self._b_station = int(found.station_id)
-        if self._b_station is None:
+            # a station keeps its sender slot for life, and the table holds a slot's newest CAM: this one
+            cam = obu.cam(found.seq)
+        elif self._b_station is None:
             return None
-        cam, _age = obu.latest_from(self._b_station, max_age_s=math.inf)
-        if cam is None:
-            return None
+        else:  # no leader this step: B keeps showing the last one's newest CAM (as it ages into "stale")
+            cam, _age = obu.latest_from(self._b_station, max_age_s=math.inf)
+            if cam is None:
+                return None
         return CamData(generation_t_s=cam.generation_t_s, x_m=cam.x_m, y_m=cam.y_m, heading_deg=cam.heading_deg,
                        speed_mps=cam.speed_mps, length_m=cam.length_m, accel_mps2=cam.accel_mps2,
                        station_id=int(cam.station_id))  # fmt: skip

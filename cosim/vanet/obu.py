@@ -446,6 +446,10 @@ class ObuView:
         i = find_leader(table, self.own, criteria or self.params.criteria)
         return None if i < 0 else table.row(i)
 
+    def cam(self, seq: int) -> ReceivedCam:
+        """The decoded CAM with sequence number ``seq`` (e.g. a NeighbourTable row's), as sent."""
+        return received_cam(self.records.get(np.array([seq])), 0)
+
     def latest_from(
         self, station_id: int, max_age_s: float | None = None
     ) -> tuple[ReceivedCam | None, float]:
@@ -461,8 +465,7 @@ class ObuView:
         mine = seqs[ids == station_id]
         if mine.size == 0:
             return None, float("inf")
-        rec = self.records.get(np.array([mine.max()]))
-        cam = received_cam(rec, 0)
+        cam = self.cam(int(mine.max()))
         age = self.now_s - cam.generation_t_s
         limit = self.params.stale_after_s if max_age_s is None else max_age_s
         if age > limit:
