@@ -107,7 +107,9 @@ def is_spawn_edge(edge) -> bool:
     return any(etype == f"highway.{h}" or etype.startswith(f"highway.{h}|") for h in SPAWN_HIGHWAYS)
 
 
-HAIRPIN_DEG = 150.0
+# a turn sharper than this is a hairpin: a U-turn, or one through a small junction whose internal lane bends
+# tighter than the car can steer (141 deg at a Krems junction: the driver left the road with full lock)
+HAIRPIN_DEG = 130.0
 
 
 def _heading(p, q) -> float:

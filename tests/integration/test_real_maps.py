@@ -11,6 +11,7 @@ import sumolib
 from testpaths import shared_map
 
 from cosim.scenario import build_scenario
+from cosim.scenario.demand import HAIRPIN_DEG
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -72,8 +73,9 @@ def test_second_build_reuses_network_and_route_table(tmp_path):
 
 @pytest.mark.parametrize("seed", [1, 2, 3, 4])
 def test_ego_route_has_no_hairpin_turn(tmp_path, seed):
-    """The predefined route never turns back on itself: a U-turn, or on the default map a 'left turn' into
-    the parallel road 2 m away (seed 3), sent the scripted driver off the road."""
+    """The predefined route never turns back on itself: a U-turn, on the default map a 'left turn' into the
+    parallel road 2 m away (seed 3) or a 141-degree turn through a small junction sent the scripted driver
+    off the road."""
     scn = build_scenario(ROOT / "configs" / "maps" / "krems.osm.gz", tmp_path, density="low", seed=seed,
                          log=lambda *a: None)  # fmt: skip
     net = sumolib.net.readNet(str(scn.net_file))
@@ -85,4 +87,4 @@ def test_ego_route_has_no_hairpin_turn(tmp_path, seed):
 
     for a, b in itertools.pairwise(route):
         turn = heading(*b.getShape()[:2]) - heading(*a.getShape()[-2:])
-        assert abs((turn + 180.0) % 360.0 - 180.0) < 150.0, (a.getID(), b.getID())
+        assert abs((turn + 180.0) % 360.0 - 180.0) <= HAIRPIN_DEG, (a.getID(), b.getID())
