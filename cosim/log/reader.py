@@ -35,6 +35,16 @@ class Log:
     def __getitem__(self, topic: str) -> dict[str, np.ndarray]:
         return self.topics[topic]
 
+    @classmethod
+    def of_messages(cls, path: str | Path, messages: dict[str, list[dict | bytes]]) -> Log:
+        """The topics of messages kept while they were written (``McapLog.keep``), as ``read`` would give
+        them from the file (tests/unit/test_log.py checks that)."""
+        decoded = {
+            t: [json.loads(m) if isinstance(m, bytes) else m for m in ms] for t, ms in messages.items()
+        }
+        return cls(Path(path), {t: _columns(ms) for t, ms in decoded.items() if ms},
+                   {t: len(ms) for t, ms in messages.items()}, {}, None, None)  # fmt: skip
+
     @property
     def duration_s(self) -> float:
         return 0.0 if self.start_ns is None else (self.end_ns - self.start_ns) / 1e9

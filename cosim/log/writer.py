@@ -135,6 +135,7 @@ class McapLog:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.closed = False
         self.count = 0
+        self.kept: dict[str, list[dict | bytes]] = {}
         self._proc: subprocess.Popen | None = None
         self._file: _File | None = None
         if background:
@@ -179,17 +180,29 @@ class McapLog:
         """Register ``topic`` now (with its own ``schema``; default: the topic's known one or a generic)."""
         self._call("channel", topic, schema)
 
+    def keep(self, topics: list[str]) -> dict[str, list[dict | bytes]]:
+        """Also keep the messages of ``topics`` in memory (``kept``), for the run's own post-processing:
+        ``cosim.log.Log.of_messages`` turns them into the columns ``read`` would give, without decoding the
+        whole file again."""
+        for topic in topics:
+            self.kept.setdefault(topic, [])
+        return self.kept
+
     def write(self, topic: str, t_s: float, message: dict | bytes) -> None:
         """Append one message (a dict, or its JSON as ``encode`` gives it); log time = simulated time (so the
         file is deterministic)."""
         self._call("write", topic, round(t_s * 1e9), message)
         self.count += 1
+        if topic in self.kept:
+            self.kept[topic].append(message)
 
     def write_deferred(self, topic: str, t_s: float, build: Callable, *args) -> None:
         """Append the message ``build(*args)`` (a dict or JSON bytes), built by the writer: ``build`` must be a
         module-level function and ``args`` picklable and not changed afterwards (pass copies)."""
         self._call("write", topic, round(t_s * 1e9), None, build, args)
         self.count += 1
+        if topic in self.kept:
+            self.kept[topic].append(build(*args))
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         self._call("metadata", name, {k: str(v) for k, v in data.items()})

@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.experiment.analysis import phase_summary, timegap_columns, write_timegap_csv
 from cosim.experiment.compare import compare_files
-from cosim.experiment.protocol import load_experiment
-from cosim.experiment.runner import run_experiment
+from cosim.experiment.protocol import load_experiment, participant_config, start_time_s
+from cosim.experiment.runner import SUMMARY_TOPICS, run_experiment
 from cosim.log import read
 from cosim.runconfig import load_run_config
 from cosim.sim import Simulation
@@ -47,6 +48,21 @@ def test_summary_has_the_three_phases_per_participant(short_experiment):
         header = (out / pid / "timegap.csv").read_text().splitlines()[0]
         assert header == "t_s,phase,system,time_gap_true_s,time_gap_displayed_s,warning"
     assert "Across participants" in (out / "summary.md").read_text()
+
+
+def test_results_from_kept_messages_equal_results_from_the_file(short_experiment, tmp_path):
+    """The runner summarises from messages kept in memory; the file read back must give the same."""
+    out, summary = short_experiment
+    exp, base = load_experiment(ROOT / "configs" / "experiment.yaml", participants=2, phase_duration_s=20)
+    for index, part in enumerate(summary["participants"]):
+        start = start_time_s(exp, participant_config(exp, index, base).ego.depart_s)
+        log = read(out / part["participant"] / "run.mcap", topics=SUMMARY_TOPICS)
+        cols = timegap_columns(log, start)
+        write_timegap_csv(cols, tmp_path / "timegap.csv")
+        assert (tmp_path / "timegap.csv").read_bytes() == (
+            out / part["participant"] / "timegap.csv"
+        ).read_bytes()
+        assert json.loads(json.dumps(phase_summary(log, cols, start))) == part["phases"]
 
 
 def test_time_gap_trace_matches_the_golden_one(short_experiment):
