@@ -524,9 +524,10 @@ class ScriptedDriver(Driver):
         # windows that start at or behind the car: the curve it is in -> plain speed tracking; windows ahead:
         # their cap applies from the window's START (conservative: a curve is never entered too fast)
         dist = s[: len(v_cap)] - s0  # [m] from the car centre to each window's start
-        under = dist <= 0.5
-        here = _CAP_GAIN_PER_S * (float(v_cap[under].min()) - v) if under.any() else math.inf
-        v_cap, dist = v_cap[~under], dist[~under]
+        # dist rises with the window index (s does), so the windows with dist <= 0.5 come first
+        n_under = int(dist.searchsorted(0.5, side="right"))
+        here = _CAP_GAIN_PER_S * (float(v_cap[:n_under].min()) - v) if n_under else math.inf
+        v_cap, dist = v_cap[n_under:], dist[n_under:]
         v_a = np.sqrt(v_cap * v_cap + 2.0 * b * dist)
         a = np.where(
             v > v_a,

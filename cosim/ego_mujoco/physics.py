@@ -38,6 +38,7 @@ import math
 from collections.abc import Sequence
 
 import mujoco
+import numpy as np
 
 from cosim.ego_mujoco.car import (
     CHASSIS_BODY,
@@ -155,15 +156,21 @@ class EgoCar:
         self._wheels = list(
             zip(
                 self._spin_dof,
+                self._load_adr,
                 self._is_driven,
                 self._sphere_radius,
                 self._wheel_xy,
                 self._brake_max,
                 self._stiffness,
                 self._r_normal,
+                self._friction_rows,
                 strict=True,
             )
         )
+        self._driven_dof = [self._spin_dof[i] for i in self._driven]
+        # the same indices as arrays, for _read_state's fancy indexing (a list is converted on every use)
+        self._spin_dof_idx, self._load_idx = np.array(self._spin_dof), np.array(self._load_adr)
+        self._acc_xy = d.qacc[self._vadr : self._vadr + 2]  # view: the chassis's linear acceleration x, y
         self._state: EgoState | None = None  # state() of the current MuJoCo state, built on first request
         self.reset(0.0, 0.0, 0.0, 0.0)
 
@@ -191,6 +198,8 @@ class EgoCar:
         m.dof_armature[:] = armature
         m.dof_frictionloss[:] = frictionloss
         m.pair_solreffriction[:] = solreffriction
+        for row in self._friction_rows:
+            row[0] = -1.0  # direct format; the stiffness is unused for friction rows
         m.opt.impratio = impratio
         mujoco.mj_forward(m, d)  # poses and tyre loads for the first control update
         self._apply_controls(0.0, 0.0, 0.0, self._chunk * self.timestep_s)
@@ -242,7 +251,7 @@ class EgoCar:
         vx, vy = qvel[v : v + 2].tolist()
         ax, ay = self._qacc[v : v + 2].tolist()
         steer = bicycle_angle(float(qpos[self._steer_qpos[0]]), float(qpos[self._steer_qpos[1]]))
-        loads = self._sensordata[self._load_adr]
+        loads = self._sensordata[self._load_idx]
         x, y, z = qpos[q : q + 3].tolist()
         return EgoState(
             t_s=float(d.time),
@@ -258,7 +267,7 @@ class EgoCar:
             lateral_accel_mps2=-s * ax + c * ay,
             yaw_rate_rps=float(self._xmat[6:9] @ qvel[v + 3 : v + 6]),  # body angular velocity -> world z
             steer_rad=steer,
-            wheel_speed_radps=qvel[self._spin_dof],  # fancy indexing: a copy
+            wheel_speed_radps=qvel[self._spin_dof_idx],  # fancy indexing: a copy
             wheel_load_n=loads,
             in_contact=loads > 0.0,
             gear=self._pt.gear,
@@ -268,47 +277,53 @@ class EgoCar:
 
     # -- internals -------------------------------------------------------------------------------------------
     def _apply_controls(self, throttle: float, brake: float, steer: float, dt_s: float) -> None:
-        """Set every run-time input of the next ``dt_s`` from the current state (scalar code: 4 wheels)."""
+        """Set every run-time input of the next ``dt_s`` from the current state (scalar code: 4 wheels).
+
+        Runs every control period, so it avoids builtin calls: ``b if b > a else a`` is exactly max(a, b)
+        and ``b if b < a else a`` min(a, b) (also for signed zeros)."""
         p = self.params
         tyre = p.tyre
         v = self._vadr
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._xmat.tolist()
         qvel = self._qvel.tolist()  # Python floats: one conversion instead of one per element read
         vx, vy, _, wlx, wly, wlz = qvel[v : v + 6]
-        acc_x, acc_y = self._qacc[v : v + 2].tolist()
+        acc_x, acc_y = self._acc_xy.tolist()
         # Longitudinal acceleration of the last step; ABS and TCS regulate the tyre force, so their
         # torque caps add the torque that spins the wheel (and engaged driveline) down or up with the car.
         accel = r00 * acc_x + r10 * acc_y
-        accel_up, accel_down = max(accel, 0.0), max(-accel, 0.0)
+        accel_up = 0.0 if 0.0 > accel else accel
+        accel_down = 0.0 if 0.0 > -accel else -accel
         omega_x = r00 * wlx + r01 * wly + r02 * wlz  # chassis angular velocity in the world frame
         omega_y = r10 * wlx + r11 * wly + r12 * wlz
         omega_z = r20 * wlx + r21 * wly + r22 * wlz
         yaw = math.atan2(r10, r00)
         sensordata = self._sensordata.tolist()
-        loads = [max(sensordata[a], 0.0) for a in self._load_adr]
-        spins = [qvel[dof] for dof in self._spin_dof]
 
         # Steering: rate-limited bicycle angle -> Ackermann angles of the two knuckle servos.
         step = self._max_steer_rate * dt_s
-        self._delta_cmd += min(max(steer * self._max_steer_rad - self._delta_cmd, -step), step)
+        delta = steer * self._max_steer_rad - self._delta_cmd
+        delta = -step if -step > delta else delta
+        self._delta_cmd += step if step < delta else delta
         left, right = ackermann_angles(self._delta_cmd, p.wheelbase_m, p.track_front_m)
-        self._ctrl[self._steer_act[0]] = left
-        self._ctrl[self._steer_act[1]] = right
+        ctrl, steer_act = self._ctrl, self._steer_act
+        ctrl[steer_act[0]] = left
+        ctrl[steer_act[1]] = right
         qpos = self._qpos
         wheel_steer = (float(qpos[self._steer_qpos[0]]), float(qpos[self._steer_qpos[1]]), 0.0, 0.0)
 
         # Powertrain: open differential (equal torque to the driven wheels).
-        driven = self._driven
-        omega_driven = sum(spins[i] for i in driven) / len(driven)
+        n_driven = len(self._driven_dof)
+        omega_driven = sum([qvel[dof] for dof in self._driven_dof]) / n_driven
         out, self._pt = step_powertrain(p.powertrain, self._pt, throttle, omega_driven, dt_s, brake)
         self._engine_rpm = out.engine_rpm
-        wheel_torque = out.axle_torque_nm / len(driven)
-        armature = out.reflected_inertia_kgm2 / len(driven)
+        wheel_torque = out.axle_torque_nm / n_driven
+        armature = out.reflected_inertia_kgm2 / n_driven
 
         # Aerodynamic drag on the chassis (horizontal, at the centre of mass).
         speed = math.hypot(vx, vy)
-        self._xfrc[0] = -self._drag_k * speed * vx
-        self._xfrc[1] = -self._drag_k * speed * vy
+        xfrc = self._xfrc
+        xfrc[0] = -self._drag_k * speed * vx
+        xfrc[1] = -self._drag_k * speed * vy
 
         k_vert = tyre.vertical_stiffness_n_per_m
         vmin, mu = tyre.min_slip_speed_mps, tyre.mu
@@ -316,9 +331,13 @@ class EgoCar:
         use_tcs, use_abs = p.powertrain.traction_control, p.brakes.abs
         abs_margin, wheel_inertia = p.brakes.abs_margin, p.wheel_inertia_kgm2
         qfrc, frictionloss, armatures = self._qfrc, self._frictionloss, self._armature
-        cr = [0.0] * 4  # c * R_normal per wheel
-        for i, (dof, is_driven, radius, (wx, wy), brake_max, stiffness, r_normal) in enumerate(self._wheels):
-            fz = loads[i]
+        sin, cos, hypot = math.sin, math.cos, math.hypot
+        cr = []  # c * R_normal per wheel
+        for i, (dof, load_adr, is_driven, radius, (wx, wy), brake_max, stiffness, r_normal, _) in enumerate(
+            self._wheels
+        ):
+            fz = sensordata[load_adr]
+            fz = 0.0 if 0.0 > fz else fz
             lever = radius - 0.5 * fz / k_vert  # wheel centre -> contact point [m]
             friction_torque = mu * fz * lever  # [N m] torque that saturates the tyre
             # Drive torque (+ traction control) and driveline inertia on the driven wheels.
@@ -328,13 +347,14 @@ class EgoCar:
                 armatures[dof] = armature
                 if use_tcs:
                     inertia = wheel_inertia + armature
-                    torque = min(torque, TCS_MARGIN * friction_torque + inertia * accel_up / lever)
+                    cap = TCS_MARGIN * friction_torque + inertia * accel_up / lever
+                    torque = cap if cap < torque else torque
             qfrc[dof] = torque
             # Brakes (+ ABS) and rolling resistance as joint friction loss.
             brake_torque = brake * brake_max
             if use_abs:
                 cap = abs_margin * friction_torque + wheel_inertia * accel_down / lever
-                brake_torque = min(brake_torque, cap)
+                brake_torque = cap if cap < brake_torque else brake_torque
             frictionloss[dof] = brake_torque + rolling * fz * lever
             # Tyre slip stiffness (see the module docstring): wheel centre velocity, then the contact
             # point's = centre + omega_wheel x (0, 0, -lever), omega_wheel = chassis + spin about the axle.
@@ -342,15 +362,18 @@ class EgoCar:
             cx = vx + omega_y * rz - omega_z * ry
             cy = vy + omega_z * rx - omega_x * rz
             heading = yaw + wheel_steer[i]
-            ox = omega_x - spins[i] * math.sin(heading)
-            oy = omega_y + spins[i] * math.cos(heading)
-            slip = math.hypot(cx - lever * oy, cy + lever * ox)
-            ci = stiffness / max(math.hypot(cx, cy), vmin)
-            ci = min(ci, SLIDE_DEMAND * mu * fz / max(slip, 1e-3))
+            spin = qvel[dof]
+            ox = omega_x - spin * sin(heading)
+            oy = omega_y + spin * cos(heading)
+            slip = hypot(cx - lever * oy, cy + lever * ox)
+            centre_speed = hypot(cx, cy)
+            ci = stiffness / (vmin if vmin > centre_speed else centre_speed)
+            cap = SLIDE_DEMAND * mu * fz / (1e-3 if 1e-3 > slip else slip)
+            ci = cap if cap < ci else ci
             # c [N s/m] >= 1: a wheel in the air keeps a well-defined (unused) contact
-            cr[i] = max(ci, 1.0) * r_normal
-        impratio = max(MIN_IMPRATIO, max(cr) / self._b_max)
+            cr.append((1.0 if 1.0 > ci else ci) * r_normal)
+        impratio = max(cr) / self._b_max
+        impratio = impratio if impratio > MIN_IMPRATIO else MIN_IMPRATIO
         self._opt.impratio = impratio
-        for i, row in enumerate(self._friction_rows):
-            row[0] = -1.0  # direct format; the stiffness is unused for friction rows
-            row[1] = -cr[i] / impratio * TYRE_IMPEDANCE  # b = damping / dmax
+        for c_r, wheel in zip(cr, self._wheels, strict=True):
+            wheel[8][1] = -c_r / impratio * TYRE_IMPEDANCE  # b = damping / dmax (row 0 is set by reset)

@@ -51,6 +51,8 @@ class AdasPhase:
         )
         self.system_b = V2VTimeGapWarning(config.v2v)
         self._b_station: int | None = None
+        self._b_seq: int | None = None  # record number of the leader CAM decoded last, and that CAM
+        self._b_cam: CamData | None = None
         sim.add_hook("adas", self.step)
 
     def _state(self, slot: int) -> VehicleState:
@@ -120,17 +122,24 @@ class AdasPhase:
         found = obu.find_leader(self.config.leader_criteria)
         if found is not None:
             self._b_station = int(found.station_id)
-            # a station keeps its sender slot for life, and the table holds a slot's newest CAM: this one
-            cam = obu.cam(found.seq)
-        elif self._b_station is None:
+            # a station keeps its sender slot for life, and the table holds a slot's newest CAM: this one.
+            # A stored CAM never changes, and a leader's newest one usually stays for several steps (CAMs
+            # come at 1-10 Hz): decode each one once.
+            if found.seq != self._b_seq:
+                self._b_seq, self._b_cam = found.seq, _cam_data(obu.cam(found.seq))
+            return self._b_cam
+        if self._b_station is None:
             return None
-        else:  # no leader this step: B keeps showing the last one's newest CAM (as it ages into "stale")
-            cam, _age = obu.latest_from(self._b_station, max_age_s=math.inf)
-            if cam is None:
-                return None
-        return CamData(generation_t_s=cam.generation_t_s, x_m=cam.x_m, y_m=cam.y_m, heading_deg=cam.heading_deg,
-                       speed_mps=cam.speed_mps, length_m=cam.length_m, accel_mps2=cam.accel_mps2,
-                       station_id=int(cam.station_id))  # fmt: skip
+        # no leader this step: B keeps showing the last one's newest CAM (as it ages into "stale")
+        cam, _age = obu.latest_from(self._b_station, max_age_s=math.inf)
+        return None if cam is None else _cam_data(cam)
+
+
+def _cam_data(cam) -> CamData:
+    """What system B reads of a decoded CAM (a ``cosim.vanet.obu.ReceivedCam``)."""
+    return CamData(generation_t_s=cam.generation_t_s, x_m=cam.x_m, y_m=cam.y_m, heading_deg=cam.heading_deg,
+                   speed_mps=cam.speed_mps, length_m=cam.length_m, accel_mps2=cam.accel_mps2,
+                   station_id=int(cam.station_id))  # fmt: skip
 
 
 def _r(v, nd: int = 4):

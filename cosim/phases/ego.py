@@ -7,6 +7,7 @@ the ego (leader, next light), and asks the driver; ``ego`` integrates the MuJoCo
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 from dataclasses import dataclass
@@ -26,6 +27,7 @@ CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
 PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
 ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
+BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 )
@@ -70,6 +72,7 @@ class RoutePath:
                 if via:
                     line.extend([tuple(p[:2]) for p in net.getLane(via).getShape()])
                 entry_lane = c.getToLane()
+        self.stop_s = [stop.s_m for stop in self.stop_lines]  # arc positions, non-decreasing
         xy = np.asarray(line.pts, dtype=np.float64)
         keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
         self.xy = xy[keep]
@@ -122,6 +125,19 @@ class RoutePath:
         out[0, 1], out[-1, 1] = np.interp([s_from, s_to], self.s, self.xy[:, 1]).tolist()
         return out
 
+    @cached_property
+    def _boxes(self) -> tuple[np.ndarray, ...]:
+        """x min, y min, x max, y max of each run of BOX_SEGMENTS segments (run k: segments from k *
+        BOX_SEGMENTS on), for a first cheap test of which points can be near the path."""
+        x, y = self.xy[:, 0], self.xy[:, 1]
+        starts = np.arange(0, len(self.xy) - 1, BOX_SEGMENTS)
+        return (
+            np.minimum.reduceat(np.minimum(x[:-1], x[1:]), starts),
+            np.minimum.reduceat(np.minimum(y[:-1], y[1:]), starts),
+            np.maximum.reduceat(np.maximum(x[:-1], x[1:]), starts),
+            np.maximum.reduceat(np.maximum(y[:-1], y[1:]), starts),
+        )
+
     def vehicles_on_path(self, xs: np.ndarray, ys: np.ndarray, s_from: float, s_to: float,
                          half_width_m: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Arc positions of points lying on the path between ``s_from`` and ``s_to`` (within
@@ -130,14 +146,25 @@ class RoutePath:
         hi = min(len(self.s) - 1, int(self.s.searchsorted(s_to)) + 1)
         if hi <= lo or len(xs) == 0:
             return np.zeros(0, dtype=int), np.zeros(0)
-        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
+        # Only points inside the bounding box of some run of segments (1 m spare for rounding) can lie on
+        # the path: the others are dropped before the (points x segments) search, which treats every
+        # point on its own.
+        c0, c1 = lo // BOX_SEGMENTS, (hi - 1) // BOX_SEGMENTS + 1
+        pad = half_width_m + 1.0
+        x0, y0, x1, y1 = (b[c0:c1] for b in self._boxes)
         px, py = xs[:, None], ys[:, None]
+        inside = (px >= x0 - pad) & (px <= x1 + pad) & (py >= y0 - pad) & (py <= y1 + pad)
+        rows = np.flatnonzero(inside.any(axis=1))
+        if rows.size == 0:
+            return rows, np.zeros(0)
+        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
+        px, py = xs[rows, None], ys[rows, None]
         t = np.minimum(np.maximum(((px - ax) * dx + (py - ay) * dy) / seg2, 0.0), 1.0)
         dist2 = (ax + t * dx - px) ** 2 + (ay + t * dy - py) ** 2
         k = dist2.argmin(axis=1)
-        rows = np.arange(len(xs))
-        s_at = self.s[lo + k] + t[rows, k] * seg_len[k]
-        on = (dist2[rows, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
+        near = np.arange(len(rows))
+        s_at = self.s[lo + k] + t[near, k] * seg_len[k]
+        on = (dist2[near, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
         return rows[on], s_at[on]
 
     def speed_limit(self, s: float) -> tuple[float, float | None, float]:
@@ -255,8 +282,11 @@ class EgoController:
         self._check_red_light(sim, tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
-        for i, line in enumerate(self.path.stop_lines):
-            if line.s_m < s_front - 1.0 or i in self._passed_signs:
+        lines = self.path.stop_lines
+        # the lines more than 1 m behind are skipped (they are sorted by arc position)
+        for i in range(bisect.bisect_left(self.path.stop_s, s_front - 1.0), len(lines)):
+            line = lines[i]
+            if i in self._passed_signs:
                 continue
             if line.s_m - s_front > 300.0:
                 break
@@ -309,7 +339,7 @@ class EgoController:
         length = w.length_m[idx]
         rear_x = w.x_m[idx] - np.sin(heading) * length
         rear_y = w.y_m[idx] - np.cos(heading) * length
-        half = PATH_HALF_WIDTH_M + 0.5 * w.width_m[idx].mean()
+        half = PATH_HALF_WIDTH_M + 0.5 * (w.width_m[idx].sum() / idx.size)  # = .mean(), without its overhead
         rows, s_rear = self.path.vehicles_on_path(
             rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half
         )
