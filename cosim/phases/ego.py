@@ -114,6 +114,10 @@ class RoutePath:
         s = float(self.s[lo + k] + t[k] * seg_len[k])
         return s, math.copysign(math.sqrt(dist2[k]), cross), k in (0, len(dist2) - 1)
 
+    def edge_index(self, s: float) -> int:
+        """Index in the route of the edge at arc position ``s`` (the edge just left while in a junction)."""
+        return max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)
+
     def window(self, s_from: float, s_to: float) -> np.ndarray:
         """The path from arc position ``s_from`` to ``s_to``: both ends interpolated, the points between."""
         s_from, s_to = max(0.0, s_from), min(self.length_m, s_to)
@@ -243,6 +247,7 @@ class EgoController:
         self._passed_signs: set[int] = set()
         self._last_tls = None
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
+        self._on_sumo_route = True  # SUMO holds the rest of the planned route for the ego
         sim.add_hook("sumo", self.own_state)
         sim.add_hook("driver", self.drive)
         sim.add_hook("ego", self.integrate)
@@ -277,6 +282,7 @@ class EgoController:
         s_c, _ = self.path.project(cx, cy)
         s_front = s_c + 0.5 * self.car.params.length_m
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
+        self._on_sumo_route = self._keep_sumo_route(sim, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
         tls = self._next_tls(sim, s_front)
         self._check_red_light(sim, tls)
@@ -304,6 +310,28 @@ class EgoController:
             route_end_dist_m=max(0.0, self.path.length_m - s_front), **kw, **adas,
         )  # fmt: skip
         self.controls = self.driver.act(self.percept, sim.step_s)
+
+    def _keep_sumo_route(self, sim, slot: int, s_front: float) -> bool:
+        """Whether SUMO holds the rest of the ego's planned route; gives it back when SUMO has replaced it.
+
+        Off its path the ego's pose may be mapped onto any lane (the driver may leave its route), and SUMO
+        then replaces the route with the one edge it mapped to. Left so, the twin would carry that one-edge
+        route for the rest of the run: SUMO's next light and right of way for the ego, and its foes' view
+        of where the ego goes, would all end at the next junction. Back on its planned edge, it gets the
+        rest of the route again."""
+        route = sim.ego_route
+        k = self.path.edge_index(s_front)
+        if sim.bridge.ego_edges_left() == len(route) - k:
+            return True
+        code = sim.world.edge_code[slot]
+        if code < 0 or sim.world.edge_names[code] != route[k]:
+            return False  # in a junction, or off the route: SUMO's route cannot start here
+        ev = sim.bridge.set_ego_route(route[k:])
+        if ev:
+            sim.events.append(ev)
+            return False
+        self._tls_cache = None
+        return True
 
     def _next_tls(self, sim, s_front: float):
         """SUMO's next light on the ego's way (a costly lookup): every step when it is near, otherwise once
@@ -374,7 +402,8 @@ class EgoController:
         suspicious = (
             p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or sim.world.edge_code[slot] < 0
         )
-        ev = sim.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious)
+        ev = sim.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious,
+                                  on_route=self._on_sumo_route and not suspicious)  # fmt: skip
         if ev:
             sim.events.append(ev)
         sim.outputs["ego_log"] = {

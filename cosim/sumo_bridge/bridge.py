@@ -242,11 +242,14 @@ class SumoBridge:
             veh.setLaneChangeMode(EGO_ID, 0)
 
     def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, edge_hint: str = "",
-                  lane_hint: int = -1, verify_on_road: bool = True) -> SumoEvent | None:  # fmt: skip
+                  lane_hint: int = -1, verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None:  # fmt: skip
         """Place the ego (front-bumper pose) for the next SUMO step and tell followers its speed.
 
-        keepRoute=2 lets SUMO map the pose onto any lane (the driver may leave the route); a pose farther
-        than ``matchThreshold`` from every lane puts the ego off-road, which ``step`` reports as an event.
+        ``on_route``: the caller knows the ego is on the route SUMO holds for it, so the pose is mapped onto
+        that route only (keepRoute=1), never onto another road it passes close to (the opposite lane in a
+        tight bend, a crossing lane inside a junction). Otherwise keepRoute=2 lets SUMO map it onto any lane
+        (the driver may leave the route). A pose farther than ``matchThreshold`` from every lane puts the
+        ego off-road, which ``step`` reports as an event.
         ``verify_on_road`` looks that up first (a search over all lanes, ~5 ms): the caller skips it while
         the ego is plainly on its path.
         """
@@ -265,11 +268,24 @@ class SumoBridge:
                 self._pose_off_road = math.hypot(rx - x_m, ry - y_m) > MATCH_THRESHOLD_M
                 if self._pose_off_road:
                     return None
-            veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=2,
+            veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=1 if on_route else 2,
                          matchThreshold=MATCH_THRESHOLD_M)  # fmt: skip
             veh.setPreviousSpeed(EGO_ID, max(0.0, speed_mps))
         except Exception as exc:  # libsumo.TraCIException: the pose could not be used at all
             return SumoEvent("ego_write_failed", EGO_ID, str(exc).splitlines()[0][:200])
+        return None
+
+    def ego_edges_left(self) -> int:
+        """Edges of the route SUMO holds for the ego from the one it is on (or has just left) to the end."""
+        veh = self.sumo.vehicle
+        return len(veh.getRoute(EGO_ID)) - veh.getRouteIndex(EGO_ID)
+
+    def set_ego_route(self, edges: list[str]) -> SumoEvent | None:
+        """Replace the ego's route in SUMO; ``edges[0]`` must be the edge it is on."""
+        try:
+            self.sumo.vehicle.setRoute(EGO_ID, edges)
+        except Exception as exc:  # libsumo.TraCIException
+            return SumoEvent("ego_route_rejected", EGO_ID, str(exc).splitlines()[0][:200])
         return None
 
     def min_gap(self, vid: str) -> float:

@@ -21,11 +21,22 @@ pytestmark = pytest.mark.own_process
 
 
 def test_scripted_driver_300s_on_the_default_map(tmp_path):
-    """No collision, never off the road, no red-light violation, lane keeping within 0.3 m on average."""
+    """No collision, never off the road, no red-light violation, lane keeping within 0.3 m on average; SUMO
+    keeps the ego's planned route (its lights, right of way and foes depend on it)."""
     cfg = load_run_config(ROOT / "configs" / "default.yaml", **{"duration_s": 300, "seed": 3,
                                                                 "scenario.demand.density": "low"})  # fmt: skip
+    foreign_route_steps = []
+
+    def check_route(sim) -> None:
+        if "ego" in sim.world.slot_of:
+            held = sim.bridge.sumo.vehicle.getRoute("ego")
+            if list(held) != sim.ego_route[-len(held) :]:  # not the rest of the planned route
+                foreign_route_steps.append(sim.world.step)
+
     with Simulation(cfg, out_dir=tmp_path) as sim:
+        sim.add_hook("log", check_route)
         stats = sim.run()
+    assert not foreign_route_steps, f"{len(foreign_route_steps)} steps from step {foreign_route_steps[0]}"
     log = read(tmp_path / "run.mcap", topics=["/ego/state", "/events"])
     e = log["/ego/state"]
     ev = log.topics.get("/events", {"kind": np.array([]), "vehicle": np.array([])})
