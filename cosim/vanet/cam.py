@@ -224,8 +224,7 @@ def _round_clip(x: np.ndarray, lo: float, hi: float) -> np.ndarray:
     return np.minimum(r, hi, out=r)
 
 
-def exterior_lights_from_sumo(signals: np.ndarray) -> np.ndarray:
-    s = np.asarray(signals, dtype=np.int64)
+def _exterior_lights(s: np.ndarray) -> np.ndarray:
     out = np.zeros(s.shape, dtype=np.int64)
     out |= np.where(s & _SUMO_FRONTLIGHT, LIGHT_LOW_BEAM, 0)
     out |= np.where(s & _SUMO_HIGHBEAM, LIGHT_HIGH_BEAM, 0)
@@ -234,6 +233,15 @@ def exterior_lights_from_sumo(signals: np.ndarray) -> np.ndarray:
     out |= np.where(s & _SUMO_BACKDRIVE, LIGHT_REVERSE, 0)
     out |= np.where(s & _SUMO_FOGLIGHT, LIGHT_FOG, 0)
     return out.astype(np.uint8)
+
+
+# every light comes from one of the low 8 SUMO signal bits: a table of their 256 combinations
+_LIGHTS_OF_LOW_BITS = _exterior_lights(np.arange(256))
+
+
+def exterior_lights_from_sumo(signals: np.ndarray) -> np.ndarray:
+    """ExteriorLights bits (uint8) of SUMO signal bit fields."""
+    return _LIGHTS_OF_LOW_BITS[np.asarray(signals, dtype=np.int64) & 0xFF]
 
 
 def _wrap_deg(d: np.ndarray) -> np.ndarray:

@@ -354,11 +354,9 @@ class PolarShadowing:
         )
         row_bytes = n_bins * 4 if model == "los" else n_bins * (self.k * 2 + 1)
         self.max_rows = max(1024, int(cache_mb * 1e6 // (row_bytes + 24)))
-        # sorted map keys and their pool rows; lattice cells (keys without the inside bit) touching a footprint
-        self._keys = np.zeros(0, dtype=np.int64)
-        self._key_rows = np.zeros(0, dtype=np.int64)
-        self._cell_keys = np.zeros(0, dtype=np.int64)
-        self._cell_touched = np.zeros(0, dtype=bool)
+        # map key -> pool row; lattice cell key (a map key without the inside bit) -> it touches a footprint
+        self._row_of: dict[int, int] = {}
+        self._cell_touched: dict[int, bool] = {}
         self._scratch = _Scratch()
         self.n_rows = 0
         self.builds = 0  # maps built so far (diagnostics)
@@ -370,6 +368,10 @@ class PolarShadowing:
         # (point, edge) pairs per vectorised cast: small enough for the expanded arrays to stay in cache
         self._chunk_pairs = 100_000 if model == "los" else 20_000
         self._bucket: dict[tuple[int, int], np.ndarray] = {}
+        # per-edge terms of _cast: the edge vector and the squared reach (range + edge length)^2
+        self._edge_x, self._edge_y = buildings.ex1 - buildings.ex0, buildings.ey1 - buildings.ey0
+        near = self.range_m + buildings.edge_len
+        self._near2 = near * near
 
     # -- pool ------------------------------------------------------------------------------------------------
     def _grow(self, rows: int) -> None:
@@ -393,8 +395,7 @@ class PolarShadowing:
         self._rows_cap = rows
 
     def _flush(self) -> None:
-        self._keys = np.zeros(0, dtype=np.int64)
-        self._key_rows = np.zeros(0, dtype=np.int64)
+        self._row_of = {}
         self.n_rows = 0
         self.flushes += 1
 
@@ -410,7 +411,23 @@ class PolarShadowing:
                 ((px - b.ex0) * ex + (py - b.ey0) * ey) / np.maximum(ex * ex + ey * ey, 1e-12), 0.0, 1.0
             )
             dist = np.hypot(b.ex0 + t * ex - px, b.ey0 + t * ey - py)
-            hit = np.flatnonzero(dist <= self.range_m + c * math.sqrt(0.5))
+            ok = dist <= self.range_m + c * math.sqrt(0.5)
+            if self.model == "los":
+                # _cast keeps an edge for a point only when the point is on the edge's outer side and an end
+                # of the edge lies within range + edge length: drop the edges for which no point of the cell
+                # passes (both tests are linear / convex in the point, so the cell's corners and box bound
+                # them; the 1 mm margin is far above rounding)
+                x0, y0 = cx * c, cy * c
+                xb, yb = np.where(ey > 0.0, x0 + c, x0), np.where(ex > 0.0, y0, y0 + c)
+                ok &= -(b.ex0 - xb) * ey + (b.ey0 - yb) * ex > -1e-3 * b.edge_len
+                lim = self.range_m + b.edge_len + 1e-3
+                near = np.zeros(ok.shape, dtype=bool)
+                for qx, qy in ((b.ex0, b.ey0), (b.ex1, b.ey1)):
+                    gx = np.maximum(np.maximum(x0 - qx, qx - (x0 + c)), 0.0)
+                    gy = np.maximum(np.maximum(y0 - qy, qy - (y0 + c)), 0.0)
+                    near |= gx * gx + gy * gy <= lim * lim
+                ok &= near
+            hit = np.flatnonzero(ok)
             self._bucket[key] = hit
         return hit
 
@@ -471,12 +488,11 @@ class PolarShadowing:
         """Ray-cast the maps of points xy (P,2) into pool ``rows`` against edge ei of point pi (pairs)."""
         b = self.b
         R = self.range_m
-        ax = b.ex0[ei] - xy[pi, 0]  # edge start relative to the point
-        ay = b.ey0[ei] - xy[pi, 1]
-        exv, eyv = b.ex1[ei] - b.ex0[ei], b.ey1[ei] - b.ey0[ei]
+        ax = b.ex0[ei] - xy[:, 0][pi]  # edge start relative to the point
+        ay = b.ey0[ei] - xy[:, 1][pi]
+        exv, eyv = self._edge_x[ei], self._edge_y[ei]
         bx, by = ax + exv, ay + eyv
-        lim = R + b.edge_len[ei]
-        near = np.minimum(ax * ax + ay * ay, bx * bx + by * by) <= lim * lim
+        near = np.minimum(ax * ax + ay * ay, bx * bx + by * by) <= self._near2[ei]
         # the point sits on the material's outer side of the edge: a ray crossing it enters the building
         outer = (-ax * eyv + ay * exv) > 0.0
         cr = ax * by - ay * bx  # cross(a, b) > 0: b is counter-clockwise from a
@@ -504,20 +520,25 @@ class PolarShadowing:
         # numerator of the ray parameter is per edge (the same products as per pair: bit-identical)
         bins = np.arange(total)
         bins += np.repeat(b0 - (np.cumsum(cnt) - cnt), cnt)
-        bins %= self.n_bins
+        if self.n_bins & (self.n_bins - 1) == 0:  # bins >= 0: the same as % for a power of two, cheaper
+            bins &= self.n_bins - 1
+        else:
+            bins %= self.n_bins
         exr, eyr = np.repeat(exv, cnt), np.repeat(eyv, cnt)
         denom = self.ux[bins] * eyr
         denom -= self.uy[bins] * exr
         with np.errstate(divide="ignore", invalid="ignore"):
             t = np.repeat(axk * eyv - ayk * exv, cnt) / denom
-        ok = (t > 0.0) & (t <= R) & np.isfinite(t)
+        ok = t > 0.0  # NaN and +-inf fail one of the two tests
+        ok &= t <= R
         nb = self.n_bins
         flat = np.repeat(pi * nb, cnt)
         flat += bins
         if self.model == "los":
             # misses as inf rather than compressed away: the minimum per cell is the same, and cheaper
             depth = np.full(len(rows) * nb, np.inf, dtype=np.float64)
-            np.minimum.at(depth, flat, np.where(ok, t, np.inf))
+            t[~ok] = np.inf
+            np.minimum.at(depth, flat, t)
             self.depth2[rows] = (depth * depth).reshape(len(rows), nb).astype(np.float32)
             return
         t, flat = t[ok], flat[ok]
@@ -536,26 +557,22 @@ class PolarShadowing:
         self.cross_d[rows] = d.reshape(len(rows), nb, k)
         self.saturated[rows] = sat.reshape(len(rows), nb)
 
-    def _inside(self, tx_xy: np.ndarray, cell_key: np.ndarray) -> np.ndarray:
+    def _inside(self, tx_xy: np.ndarray, ij: np.ndarray, cell_key: list[int]) -> np.ndarray:
         """Whether each point is inside a footprint; the point test only in lattice cells that touch one."""
-        known = np.zeros(cell_key.size, dtype=bool)
-        if self._cell_keys.size:
-            pos = np.minimum(np.searchsorted(self._cell_keys, cell_key), self._cell_keys.size - 1)
-            known = self._cell_keys[pos] == cell_key
-        if not known.all():
-            new, first = np.unique(cell_key[~known], return_index=True)
-            ij = np.floor(tx_xy[~known][first] / self.lattice_m)
-            boxes = shapely.box(*(ij * self.lattice_m).T, *((ij + 1.0) * self.lattice_m).T)
-            touched = np.zeros(new.size, dtype=bool)
-            if len(self.b):
-                touched[self.b.tree.query(boxes, predicate="intersects")[0]] = True
-            at = np.searchsorted(self._cell_keys, new)
-            self._cell_keys = np.insert(self._cell_keys, at, new)
-            self._cell_touched = np.insert(self._cell_touched, at, touched)
-        pos = np.searchsorted(self._cell_keys, cell_key)
+        touched = [self._cell_touched.get(k) for k in cell_key]
+        if None in touched:
+            new = {}  # unknown cell -> its first point
+            for i, (k, t) in enumerate(zip(cell_key, touched, strict=True)):
+                if t is None:
+                    new.setdefault(k, i)
+            corner = ij[list(new.values())] * self.lattice_m
+            boxes = shapely.box(*corner.T, *(corner + self.lattice_m).T)
+            hit = set(self.b.tree.query(boxes, predicate="intersects")[0].tolist()) if len(self.b) else set()
+            self._cell_touched.update((k, i in hit) for i, k in enumerate(new))
+            touched = [self._cell_touched[k] for k in cell_key]
         inside = np.zeros(len(tx_xy), dtype=bool)
-        test = self._cell_touched[pos].nonzero()[0]
-        if test.size:
+        test = [i for i, t in enumerate(touched) if t]
+        if test:
             inside[test] = self.b.containing_count(tx_xy[test]) > 0
         return inside
 
@@ -563,19 +580,23 @@ class PolarShadowing:
         """Pool rows of the visibility maps for these transmitter positions (T,2), building missing maps.
 
         A map is keyed by the lattice cell and by whether the transmitter is inside a building footprint.
+        A window has a few dozen transmitters: the keys are looked up in dicts, one by one.
         """
         tx_xy = np.asarray(tx_xy, dtype=np.float64)
         ij = np.floor(tx_xy / self.lattice_m).astype(np.int64)
-        cell_key = ((ij[:, 0] + (1 << 30)) << 32) | ((ij[:, 1] + (1 << 30)) << 1)
-        keys = cell_key | self._inside(tx_xy, cell_key)
-        pos = np.minimum(np.searchsorted(self._keys, keys), max(self._keys.size - 1, 0))
-        rows = np.where(self._keys[pos] == keys, self._key_rows[pos], -1) if self._keys.size else keys * 0 - 1
-        missing = rows < 0
-        if missing.any():
-            new_keys, first, inv = np.unique(keys[missing], return_index=True, return_inverse=True)
-            n_new = new_keys.size
+        cell_key = (((ij[:, 0] + (1 << 30)) << 32) | ((ij[:, 1] + (1 << 30)) << 1)).tolist()
+        inside = self._inside(tx_xy, ij, cell_key).tolist()
+        keys = [k | i for k, i in zip(cell_key, inside, strict=True)]
+        rows = [self._row_of.get(k, -1) for k in keys]
+        if -1 in rows:
+            first = {}  # new key -> first transmitter with it, by key (rows are handed out in key order)
+            for i, (k, r) in enumerate(zip(keys, rows, strict=True)):
+                if r < 0:
+                    first.setdefault(k, i)
+            new_keys = sorted(first)
+            n_new = len(new_keys)
             if self.n_rows + n_new > self.max_rows:
-                if np.unique(keys).size > self.max_rows:
+                if len(set(keys)) > self.max_rows:
                     raise ValueError("channel.polar_cache_mb is too small for one window's transmitters")
                 self._flush()
                 return self.rows_for(tx_xy)
@@ -583,16 +604,12 @@ class PolarShadowing:
                 self._grow(min(self.max_rows, max(2 * self._rows_cap, self.n_rows + n_new)))
             new_rows = np.arange(self.n_rows, self.n_rows + n_new)
             self.n_rows += n_new
-            at = np.searchsorted(self._keys, new_keys)
-            self._keys, self._key_rows = (
-                np.insert(self._keys, at, new_keys),
-                np.insert(self._key_rows, at, new_rows),
-            )
-            xy, n0 = self._representatives(ij[missing][first], (new_keys & 1).astype(bool))
+            self._row_of.update(zip(new_keys, new_rows.tolist(), strict=True))
+            xy, n0 = self._representatives(ij[[first[k] for k in new_keys]], (np.array(new_keys) & 1) == 1)
             self._build(new_rows, xy, n0)
             self.builds += n_new
-            rows[missing] = new_rows[inv.reshape(-1)]
-        return rows
+            rows = [self._row_of[k] for k in keys]
+        return np.array(rows, dtype=np.int64)
 
     def _lookup(
         self, rows: np.ndarray, dx: np.ndarray, dy: np.ndarray, scratch: _Scratch | None = None
@@ -755,7 +772,9 @@ class Links:
             logged = b.logged
             cols = None
             if receivers is not None:
-                want = np.unique(np.asarray(receivers, dtype=np.intp))
+                want = np.asarray(receivers, dtype=np.intp)
+                if want.size > 1:  # (np.unique costs more than the rest of a one-receiver batch)
+                    want = np.unique(want)
                 if b.m is None:
                     cols = want
                 else:
@@ -913,8 +932,12 @@ class Aether:
         tx_xy = np.asarray(tx_xy, dtype=np.float64)
         # per-link arithmetic in float32: positions to ~1 mm up to 10 km from the origin, and 3-4x faster
         rx_x, rx_y = rx_xy[:, 0].astype(np.float32), rx_xy[:, 1].astype(np.float32)
-        _, gi = np.unique(tx_group, return_inverse=True)
-        gi = gi.reshape(-1)
+        tx_group = np.asarray(tx_group)
+        if np.all(tx_group[1:] >= tx_group[:-1]):  # the usual case (slots in order): no sort needed
+            gi = np.zeros(n_tx, dtype=np.intp)
+            np.cumsum(tx_group[1:] != tx_group[:-1], out=gi[1:])
+        else:
+            gi = np.unique(tx_group, return_inverse=True)[1].reshape(-1)
         blocks, n_eval = [], 0
         for t, m in self._plan(tx_xy, rx_xy, n_tx, n_rx):
             if t is not None and t.size == 0:

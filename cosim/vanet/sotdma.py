@@ -129,6 +129,10 @@ def report_rate(t_gen_cam_ms: np.ndarray, frame_ms: int, max_rate: int) -> np.nd
     return np.minimum(np.maximum(-(-frame_ms // t), 1), max_rate).astype(np.int16)  # np.clip costs 3x
 
 
+def _as_list(v) -> list:
+    return v if isinstance(v, list) else np.asarray(v).tolist()
+
+
 def select_slots(
     map_until: np.ndarray,
     map_dist: np.ndarray,
@@ -146,55 +150,52 @@ def select_slots(
     map_until: (S, N) int, frame through which each slot is reserved by another station (-1 none);
     map_dist: (S, N) float, distance to that station [m]; own: (B, R) slot numbers the requesting station
     already holds (-1 = none), never candidates. Returns (global slot index (B,), candidate-set size (B,)).
+    Requests come a few at a time with intervals of 40-400 slots: plain Python beats array rounds here.
     """
-    b = len(stations)
-    lo_g = np.asarray(lo_g, dtype=np.int64)
-    width = np.asarray(hi_g, dtype=np.int64) - lo_g + 1
-    w = int(width.max())
-    offs = np.arange(w)
-    # slot numbers and frames of lo_g + offs: the interval is at most a frame (+1), so it wraps at most once
-    f0, k0 = np.divmod(lo_g, n_slots)
-    ks = k0[:, None] + offs[None, :]  # (B, W)
-    wrap = ks >= n_slots
-    ks -= n_slots * wrap
-    inside = offs[None, :] < width[:, None]
-    mine = np.zeros(ks.shape, dtype=bool)
-    rows = np.arange(b)
-    own = np.asarray(own, dtype=np.int64)
-    pos = (own - lo_g[:, None]) % n_slots
-    hr, hc = np.nonzero((own >= 0) & (pos < width[:, None]))
-    mine[hr, pos[hr, hc]] = True
-    st = np.asarray(stations, dtype=np.int64)
-    until = map_until.reshape(-1).take(ks + (st * map_until.shape[1])[:, None])
-    free = inside & ~mine & (until < wrap + f0[:, None])
-    n_free = free.sum(axis=1)  # count_nonzero(axis=...) is a Python-level wrapper around the same
-    u = rng.random(b)
-    j = (u * n_free).astype(np.int64)
-    # the (j+1)-th free slot of each row (rows without one are among ``few`` below)
-    at = np.flatnonzero(free)
-    pos = np.zeros(b, dtype=np.int64)
-    if at.size:
-        first = np.cumsum(n_free) - n_free
-        pos = at[np.minimum(first + j, at.size - 1)] - rows * w
-    n_cand = n_free.copy()
-    few = (n_free < min_candidates).nonzero()[0]
-    if few.size:
-        st = st[:, None]
-        cum = np.cumsum(free[few], axis=1)
-        # fill the candidate set with the slots of the farthest stations; none free: the farthest one
-        taken = inside[few] & ~mine[few] & ~free[few]
-        dist = np.where(taken, map_dist[st[few], ks[few]], -np.inf)
-        far = np.argsort(-dist, axis=1, kind="stable")
-        nf = n_free[few]
-        total = nf + np.minimum(min_candidates - nf, taken.sum(axis=1))
-        jj = (u[few] * total).astype(np.int64)
-        from_far = far[np.arange(few.size), np.clip(jj - nf, 0, far.shape[1] - 1)]
-        from_free = np.argmax(cum > jj[:, None], axis=1)
-        p = np.where(jj < nf, from_free, from_far)
-        p = np.where(nf == 0, far[:, 0], p)
-        pos[few] = p
-        n_cand[few] = np.where(nf == 0, np.minimum(total, 1), total)
-    return lo_g + pos, n_cand
+    n = n_slots
+    requests = []
+    for st, lo, hi, own_row in zip(
+        _as_list(stations), _as_list(lo_g), _as_list(hi_g), _as_list(own), strict=True
+    ):
+        f0, k0 = divmod(lo, n)
+        width = hi - lo + 1
+        # the interval is at most a frame (+1), so it wraps at most once: offsets from ``split`` on lie in
+        # the next frame (a reservation through frame f0 still blocks them, one through f0 + 1 not)
+        split = min(width, n - k0)
+        row = map_until[st]
+        is_free = row[k0 : k0 + split] < f0
+        if split < width:
+            is_free = np.concatenate((is_free, row[: width - split] <= f0))
+        mine = {(o - lo) % n for o in own_row if o >= 0}
+        for o in mine:
+            if o < width:
+                is_free[o] = False
+        requests.append((st, lo, k0, width, mine, is_free.nonzero()[0]))
+    u_all = rng.random(len(requests)).tolist()
+    picks, sizes = [], []
+    for (st, lo, k0, width, mine, free), u in zip(requests, u_all, strict=True):
+        nf = free.size
+        if nf >= min_candidates:
+            picks.append(lo + int(free[int(u * nf)]))
+            sizes.append(nf)
+            continue
+        free = free.tolist()
+        # fill the candidate set with the slots of the farthest stations (stable: equal distances keep slot
+        # order); none free: the farthest one (or the first slot when nobody reserved any)
+        free_set = set(free)
+        dist = map_dist[st]
+        taken = [o for o in range(width) if o not in mine and o not in free_set]
+        far = sorted(taken, key=lambda o: -float(dist[(k0 + o) % n]))
+        total = nf + min(min_candidates - nf, len(taken))
+        jj = int(u * total)
+        if nf == 0:
+            pos = far[0] if far else 0
+            sizes.append(min(total, 1))
+        else:
+            pos = free[jj] if jj < nf else far[jj - nf]
+            sizes.append(total)
+        picks.append(lo + pos)
+    return np.array(picks, dtype=np.int64), np.array(sizes, dtype=np.int64)
 
 
 def select_slot(
@@ -226,7 +227,6 @@ def select_slot(
 
 
 IDLE, LISTENING, ACTIVE = 0, 1, 2
-_NO_SLOT = np.iinfo(np.int64).max  # sorts after every global slot index (np.iinfo per call is slow)
 
 
 @dataclass
@@ -252,6 +252,7 @@ class SotdmaMac:
         self.rng = rng
         self.r_max = params.max_report_rate
         self.replans = 0  # rate-change re-plans so far (diagnostics)
+        self.n_started = 0  # 1 + the highest slot ever started: stations from there on are idle (not scanned)
         self.capacity = 0
         self._alloc(capacity)
 
@@ -296,6 +297,8 @@ class SotdmaMac:
     def start(self, slots: np.ndarray, g_now: int) -> None:
         """New stations: empty map, no reservations, listen for listen_frames frames."""
         self.stop(slots)
+        if np.size(slots):
+            self.n_started = max(self.n_started, int(np.max(slots)) + 1)
         self.state[slots] = LISTENING
         self.listen_end_g[slots] = g_now + self.p.listen_frames * self.n
         self.map_until[slots] = -1
@@ -311,50 +314,60 @@ class SotdmaMac:
 
     # -- slot selection --------------------------------------------------------------------------------------
     def _delta(self, rate):
-        """Selection-interval half-width for a report rate (scalar or array) [slots]."""
+        """Selection-interval half-width for a report rate (int, or array) [slots]."""
+        if isinstance(rate, int):
+            return int(self.p.selection_interval_frac * (self.n // rate))
         return (self.p.selection_interval_frac * (self.n // np.asarray(rate))).astype(np.int64)
 
     def _assign(self, s, j, nominal, centre, delta, after) -> np.ndarray:
-        """Select and store reservation j of station s for a batch of requests (arrays of shape (B,)):
-        a slot in [centre - delta, centre + delta], not before ``after``; returns the chosen global slots."""
-        s, j = np.asarray(s, dtype=np.int64), np.asarray(j, dtype=np.int64)
-        lo = np.maximum(np.asarray(centre) - delta, after)
-        hi = np.maximum(np.asarray(centre) + delta, lo)
-        own = self.res_slot[s].astype(np.int64)
-        own[np.arange(s.size), j] = -1  # the slot being replaced may be chosen again
-        g, _ = select_slots(
+        """Select and store reservation j of station s for a batch of requests (shape (B,); delta and
+        after may be scalars): a slot in [centre - delta, centre + delta], not before ``after``; returns the
+        chosen global slots (B,) int64. A few requests per call: plain Python around select_slots."""
+        s, j = np.asarray(s).tolist(), np.asarray(j).tolist()
+        b = len(s)
+        nominal, centre = np.asarray(nominal).tolist(), np.asarray(centre).tolist()
+        delta, after = ([int(v)] * b if np.ndim(v) == 0 else np.asarray(v).tolist() for v in (delta, after))
+        lo = [max(c - d, a) for c, d, a in zip(centre, delta, after, strict=True)]
+        hi = [max(c + d, x) for c, d, x in zip(centre, delta, lo, strict=True)]
+        own = self.res_slot[s].tolist()
+        for row, ji in zip(own, j, strict=True):
+            row[ji] = -1  # the slot being replaced may be chosen again
+        g = select_slots(
             self.map_until, self.map_dist, s, lo, hi, own, self.n, self.p.min_candidates, self.rng
-        )
-        self.res_slot[s, j] = g % self.n
-        self.res_nominal[s, j] = nominal
-        self.res_next_g[s, j] = g
-        self.res_timeout[s, j] = self.rng.integers(
-            self.p.timeout_min_frames, self.p.timeout_max_frames + 1, size=s.size
-        )
+        )[0].tolist()
+        timeout = self.rng.integers(self.p.timeout_min_frames, self.p.timeout_max_frames + 1, size=b).tolist()
+        n = self.n
+        for si, ji, gi, nom, tau in zip(s, j, g, nominal, timeout, strict=True):
+            self.res_slot[si, ji] = gi % n
+            self.res_nominal[si, ji] = nom
+            self.res_next_g[si, ji] = gi
+            self.res_timeout[si, ji] = tau
         # requests of one station in one batch whose intervals overlap may have met: redo one by one
-        r = np.sort(self.res_slot[s], axis=1)
-        met = ((r[:, 1:] == r[:, :-1]) & (r[:, 1:] >= 0)).any(axis=1)
-        for st in np.unique(s[met]).tolist() if met.any() else ():
-            for i in np.flatnonzero(s == st).tolist():
-                row = self.res_slot[st].astype(np.int64)
-                if np.count_nonzero(row == row[j[i]]) > 1:
-                    own_i = row.copy()
-                    own_i[j[i]] = -1
-                    gi, _ = select_slots(
-                        self.map_until,
-                        self.map_dist,
-                        np.array([st]),
-                        lo[i : i + 1],
-                        hi[i : i + 1],
-                        own_i[None, :],
-                        self.n,
-                        self.p.min_candidates,
-                        self.rng,
+        for st in sorted(set(s)):
+            held = [x for x in self.res_slot[st].tolist() if x >= 0]
+            if len(set(held)) == len(held):
+                continue
+            for i in (i for i, si in enumerate(s) if si == st):
+                row = self.res_slot[st].tolist()
+                if row.count(row[j[i]]) > 1:
+                    row[j[i]] = -1
+                    gi = int(
+                        select_slots(
+                            self.map_until,
+                            self.map_dist,
+                            [st],
+                            [lo[i]],
+                            [hi[i]],
+                            [row],
+                            n,
+                            self.p.min_candidates,
+                            self.rng,
+                        )[0][0]
                     )
-                    g[i] = gi[0]
-                    self.res_slot[st, j[i]] = gi[0] % self.n
-                    self.res_next_g[st, j[i]] = gi[0]
-        return g
+                    g[i] = gi
+                    self.res_slot[st, j[i]] = gi % n
+                    self.res_next_g[st, j[i]] = gi
+        return np.array(g, dtype=np.int64)
 
     def _next_centre(self, nominal, delta, g_now: int):
         """Global index of the next occurrence of a nominal slot whose SI still lies (partly) ahead."""
@@ -379,62 +392,49 @@ class SotdmaMac:
 
         More slots: each new nominal slot goes to the middle of the largest gap between the current nominal
         slots, and a slot is selected in its SI. Fewer: keep an evenly spread subset of the reservations.
+        A few stations with a few slots each: plain Python beats array rounds here.
         """
         n, r_max = self.n, self.r_max
-        stations = np.asarray(stations, dtype=np.int64)
-        slot, nom = self.res_slot[stations], self.res_nominal[stations].astype(np.int64)
-        valid = slot >= 0
-        cnt = valid.sum(axis=1)
-        new = self.rate[stations].astype(np.int64)
-        shr = (new < cnt).nonzero()[0]
-        if shr.size:
-            # each row's reservations by nominal slot (stable: ties keep column order), unused columns last
-            by_nom = np.argsort(np.where(valid[shr], nom[shr], _NO_SLOT), axis=1, kind="stable")
-            k = np.arange(r_max)[None, :]
-            pick = np.rint(k * cnt[shr, None] / new[shr, None]).astype(np.int64)
-            keep = by_nom[np.arange(shr.size)[:, None], np.minimum(pick, r_max - 1)]
-            kept = k < new[shr, None]
-            st = stations[shr]
-            for a, fill in zip(
-                (self.res_slot, self.res_nominal, self.res_next_g, self.res_timeout),
-                (-1, -1, -1, 0),
-                strict=True,
-            ):
-                a[st] = np.where(kept, a[st[:, None], keep], fill)
-        grow = (new > cnt).nonzero()[0]
-        if grow.size == 0:
+        res = (self.res_slot, self.res_nominal, self.res_next_g, self.res_timeout)
+        req_s, req_j, req_nominal = [], [], []
+        for st in np.asarray(stations).tolist():
+            slot, nom = self.res_slot[st].tolist(), self.res_nominal[st].tolist()
+            used = [c for c in range(r_max) if slot[c] >= 0]
+            cnt, new = len(used), int(self.rate[st])
+            if new < cnt:
+                # the reservations by nominal slot (stable: ties keep column order), every (cnt / new)-th
+                # (rounded half to even) moved to the first columns
+                by_nom = sorted(used, key=nom.__getitem__)
+                keep = [by_nom[round(k * cnt / new)] for k in range(new)]
+                for a, fill in zip(res, (-1, -1, -1, 0), strict=True):
+                    row = a[st].tolist()
+                    a[st] = [row[c] for c in keep] + [fill] * (r_max - new)
+            elif new > cnt:
+                # the new nominal slots one at a time, each in the middle of the largest gap (first of equal
+                # ones), to the station's unused columns in order
+                noms = sorted(nom[c] for c in used)
+                free_cols = [c for c in range(r_max) if slot[c] < 0]
+                for col in free_cols[: new - cnt]:
+                    c = len(noms)
+                    if c == 0:
+                        nominal = int(self.nss[st])
+                    else:
+                        best_gap, best_k = -1, 0
+                        for k in range(c):
+                            gap = (noms[k + 1 if k + 1 < c else 0] - noms[k]) % n or n
+                            if gap > best_gap:
+                                best_gap, best_k = gap, k
+                        nominal = (noms[best_k] + best_gap // 2) % n
+                    bisect.insort(noms, nominal)
+                    req_s.append(st)
+                    req_j.append(col)
+                    req_nominal.append(nominal)
+                self.first_frame_end_g[st] = g_now + n
+        if not req_s:
             return
-        # the new nominal slots one at a time, each in the middle of the largest gap (first of equal ones);
-        # a few stations with a few slots each: plain Python beats array rounds here
-        ri, rj, rn = [], [], []
-        nss = self.nss[stations[grow]].tolist()
-        for i, (v_row, n_row, add) in enumerate(
-            zip(valid[grow].tolist(), nom[grow].tolist(), (new[grow] - cnt[grow]).tolist(), strict=True)
-        ):
-            noms = sorted(x for x, v in zip(n_row, v_row, strict=True) if v)
-            for j in range(add):
-                c = len(noms)
-                if c == 0:
-                    nominal = nss[i]
-                else:
-                    best_gap, best_k = -1, 0
-                    for k in range(c):
-                        gap = (noms[k + 1 if k + 1 < c else 0] - noms[k]) % n or n
-                        if gap > best_gap:
-                            best_gap, best_k = gap, k
-                    nominal = (noms[best_k] + best_gap // 2) % n
-                bisect.insort(noms, nominal)
-                ri.append(i)
-                rj.append(j)
-                rn.append(nominal)
-        ri, rj, rn = np.array(ri, dtype=np.int64), np.array(rj, dtype=np.int64), np.array(rn, dtype=np.int64)
-        # the j-th new nominal slot goes to the station's j-th unused column
-        free_cols = np.argsort(valid[grow], axis=1, kind="stable")  # unused columns first, in order
-        cols = free_cols[ri, rj]
-        s = stations[grow][ri]
-        self.first_frame_end_g[stations[grow]] = g_now + n
-        delta = self._delta(self.rate[s].astype(np.int64))
-        self._assign(s, cols, rn, self._next_centre(rn, delta, g_now), delta, g_now)
+        delta = [self._delta(int(self.rate[st])) for st in req_s]
+        centre = self._next_centre(np.array(req_nominal), np.array(delta), g_now)
+        self._assign(req_s, req_j, req_nominal, centre, delta, g_now)
 
     def set_rates(self, slots: np.ndarray, rates: np.ndarray, g_now: int) -> None:
         """Report-rate update after CAM generation.
@@ -475,56 +475,58 @@ class SotdmaMac:
 
         ``pending`` (capacity,) bool is cleared for the stations that sent. Timeouts count down on every use
         (sent or silent); at 0 a new slot is chosen in the same SI of the next frame and announced.
+        A window holds a few dozen uses: after the array scan, plain Python beats array rounds.
         """
         n = self.n
-        use = (self.res_next_g >= g_lo) & (self.res_next_g < g_hi)
-        use &= (self.state == ACTIVE)[:, None]
-        st, j = np.nonzero(use)
-        if st.size == 0:
-            e = np.zeros(0, dtype=np.int64)
-            return Transmissions(e.astype(np.int32), e, e.astype(np.int8), e.astype(np.int32))
-        g = self.res_next_g[st, j]
-        order = np.lexsort((j, st, g))
-        st, j, g = st[order], j[order], g[order]
-        # the first use of each station in the window carries its pending CAM
-        first = np.zeros(st.size, dtype=bool)
-        _, first_idx = np.unique(st, return_index=True)
-        first[first_idx] = True
-        sends = first & pending[st]
-        pending[st[sends]] = False
-        tau = self.res_timeout[st, j].astype(np.int64)
-        offset = np.zeros(st.size, dtype=np.int64)
-        # continuous operation: count down, or reselect at timeout 0
-        cont = tau > 0
-        self.res_timeout[st[cont], j[cont]] = tau[cont] - 1
-        self.res_next_g[st[cont], j[cont]] = g[cont] + n
-        resel = (~cont).nonzero()[0]
-        if resel.size:
-            rs, rj, rg = st[resel], j[resel], g[resel]
-            delta = self._delta(np.maximum(self.rate[rs].astype(np.int64), 1))
-            nominal = self.res_nominal[rs, rj].astype(np.int64)
+        next_g = self.res_next_g[: self.n_started]
+        use = (next_g >= g_lo) & (next_g < g_hi)
+        use &= (self.state[: self.n_started] == ACTIVE)[:, None]
+        st, j = use.nonzero()
+        # by slot, then station, then reservation column
+        uses = sorted(zip(self.res_next_g[st, j].tolist(), st.tolist(), j.tolist(), strict=True))
+        res_next_g, res_timeout = self.res_next_g, self.res_timeout
+        sent, sent_tau, offset_of = [], [], {}  # offset_of: use index -> announced offset
+        resel = []
+        seen = set()
+        for i, (g, s, jj) in enumerate(uses):
+            # the first use of each station in the window carries its pending CAM
+            if s not in seen:
+                seen.add(s)
+                if pending[s]:
+                    pending[s] = False
+                    sent.append(i)
+            tau = int(res_timeout[s, jj])
+            sent_tau.append(tau)
+            # continuous operation: count down, or reselect at timeout 0
+            if tau > 0:
+                res_timeout[s, jj] = tau - 1
+                res_next_g[s, jj] = g + n
+            else:
+                resel.append(i)
+        if resel:
+            rs = [uses[i][1] for i in resel]
+            rj = [uses[i][2] for i in resel]
+            rg = [uses[i][0] for i in resel]
+            delta = [self._delta(max(int(self.rate[s]), 1)) for s in rs]
+            nominal = [int(self.res_nominal[s, jj]) for s, jj in zip(rs, rj, strict=True)]
             # the nominal occurrence each use belongs to, then the same one a frame later
-            centre = rg + (nominal - rg % n + n // 2) % n - n // 2 + n
-            new_g = self._assign(rs, rj, nominal, centre, delta, rg + 1)
-            offset[resel] = new_g - rg
-        # first frame after entry / re-plan: announce the offset to the station's next slot
-        ff = (sends & cont & (g < self.first_frame_end_g[st])).nonzero()[0]
-        if ff.size:
-            # the nearest later slot of the station: a later use in this window or a next reservation
-            big = _NO_SLOT
-            gf = g[ff]
-            res = self.res_next_g[st[ff]]
-            nearest = np.where(res > gf[:, None], res, big).min(axis=1)
-            pos = np.full(self.capacity, -1, dtype=np.int64)
-            pos[st[ff]] = np.arange(ff.size)
-            p = pos[st]
-            later = (p >= 0).nonzero()[0]
-            later = later[g[later] > gf[p[later]]]
-            np.minimum.at(nearest, p[later], g[later])
-            offset[ff] = np.where(nearest < big, nearest - gf, 0)
-        keep = sends
+            centre = [g + (nom - g % n + n // 2) % n - n // 2 + n for g, nom in zip(rg, nominal, strict=True)]
+            new_g = self._assign(rs, rj, nominal, centre, delta, [g + 1 for g in rg]).tolist()
+            for i, g, gn in zip(resel, rg, new_g, strict=True):
+                offset_of[i] = gn - g
+        # first frame after entry / re-plan: announce the offset to the station's next slot, the nearest
+        # later one of a later use in this window or a next reservation
+        for i in sent:
+            g, s, _ = uses[i]
+            if sent_tau[i] > 0 and g < self.first_frame_end_g[s]:
+                later = [x for x in res_next_g[s].tolist() if x > g]
+                later += [u[0] for u in uses[i + 1 :] if u[1] == s and u[0] > g]
+                offset_of[i] = min(later) - g if later else 0
         return Transmissions(
-            st[keep].astype(np.int32), g[keep], tau[keep].astype(np.int8), offset[keep].astype(np.int32)
+            np.array([uses[i][1] for i in sent], dtype=np.int32),
+            np.array([uses[i][0] for i in sent], dtype=np.int64),
+            np.array([sent_tau[i] for i in sent], dtype=np.int8),
+            np.array([offset_of.get(i, 0) for i in sent], dtype=np.int32),
         )
 
     def hear(
