@@ -26,6 +26,9 @@ TLS_REFRESH_S = 1.0
 CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
 PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
+# SUMO holds the ego's route this far ahead (from the edge it is on), renewed at half of it: enough for its
+# next light (read within 300 m) and right of way; matching a pose against a short route is cheap
+SUMO_ROUTE_AHEAD_M = 800.0
 ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
 BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
 PATH_HALF_WIDTH_M = (
@@ -247,7 +250,8 @@ class EgoController:
         self._passed_signs: set[int] = set()
         self._last_tls = None
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
-        self._on_sumo_route = True  # SUMO holds the rest of the planned route for the ego
+        self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
+        self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
         sim.add_hook("sumo", self.own_state)
         sim.add_hook("driver", self.drive)
         sim.add_hook("ego", self.integrate)
@@ -312,24 +316,33 @@ class EgoController:
         self.controls = self.driver.act(self.percept, sim.step_s)
 
     def _keep_sumo_route(self, sim, slot: int, s_front: float) -> bool:
-        """Whether SUMO holds the rest of the ego's planned route; gives it back when SUMO has replaced it.
+        """Whether SUMO holds the ego's planned route ahead of it; gives SUMO the next stretch of it when the
+        held one runs short or SUMO has replaced it.
 
         Off its path the ego's pose may be mapped onto any lane (the driver may leave its route), and SUMO
         then replaces the route with the one edge it mapped to. Left so, the twin would carry that one-edge
         route for the rest of the run: SUMO's next light and right of way for the ego, and its foes' view
-        of where the ego goes, would all end at the next junction. Back on its planned edge, it gets the
-        rest of the route again."""
+        of where the ego goes, would all end at the next junction. SUMO holds only SUMO_ROUTE_AHEAD_M of
+        the route: it matches every pose against each edge of the route it holds."""
         route = sim.ego_route
         k = self.path.edge_index(s_front)
-        if sim.bridge.ego_edges_left() == len(route) - k:
+        end = self._sumo_route_end
+        held = sim.bridge.ego_edges_left() == (len(route) if end is None else end) - k
+        if (
+            held
+            and end is not None
+            and (end == len(route) or self.path.limit_s[end] - s_front > 0.5 * SUMO_ROUTE_AHEAD_M)
+        ):
             return True
         code = sim.world.edge_code[slot]
         if code < 0 or sim.world.edge_names[code] != route[k]:
-            return False  # in a junction, or off the route: SUMO's route cannot start here
-        ev = sim.bridge.set_ego_route(route[k:])
+            return held  # in a junction, or off the route: SUMO's route cannot start here
+        end = self.path.edge_index(s_front + SUMO_ROUTE_AHEAD_M) + 1
+        ev = sim.bridge.set_ego_route(route[k:end])
         if ev:
             sim.events.append(ev)
             return False
+        self._sumo_route_end = end
         self._tls_cache = None
         return True
 
