@@ -26,8 +26,9 @@ TLS_REFRESH_S = 1.0
 CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
 LANE_CHANGE_LENGTH_M = 30.0
 PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
-# SUMO holds the ego's route this far ahead (from the edge it is on), renewed at half of it: enough for its
-# next light (read within 300 m) and right of way; matching a pose against a short route is cheap
+# SUMO is given the ego's route this far ahead, renewed at half of it: enough for its next light (read
+# within 300 m) and right of way. It matches every pose against each edge of the route it holds (the ones
+# passed too, which it keeps), so the whole route ahead would cost up to 0.3 ms a step.
 SUMO_ROUTE_AHEAD_M = 800.0
 ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
 BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
@@ -322,8 +323,7 @@ class EgoController:
         Off its path the ego's pose may be mapped onto any lane (the driver may leave its route), and SUMO
         then replaces the route with the one edge it mapped to. Left so, the twin would carry that one-edge
         route for the rest of the run: SUMO's next light and right of way for the ego, and its foes' view
-        of where the ego goes, would all end at the next junction. SUMO holds only SUMO_ROUTE_AHEAD_M of
-        the route: it matches every pose against each edge of the route it holds."""
+        of where the ego goes, would all end at the next junction."""
         route = sim.ego_route
         k = self.path.edge_index(s_front)
         end = self._sumo_route_end
