@@ -38,7 +38,7 @@ class Log:
     @classmethod
     def of_messages(cls, path: str | Path, messages: dict[str, list[dict | bytes]]) -> Log:
         """The topics of messages kept while they were written (``McapLog.keep``), as ``read`` would give
-        them from the file (tests/unit/test_log.py checks that)."""
+        them from the file (tests/integration/test_experiment.py checks that for the experiment's topics)."""
         decoded = {
             t: [json.loads(m) if isinstance(m, bytes) else m for m in ms] for t, ms in messages.items()
         }
