@@ -41,6 +41,13 @@ yellow_max_decel_mps2          3.0     3.5    4.0    2.5    ITE yellow-interval 
 stop_line_margin_m             0.5     0.7    0.8    0.3    bumper-to-line at a stop (assumption).
 stop_dwell_s                   1.0     1.5    2.0    0.5    paper: SCVs pause >= 2 frames; humans ~1-2 s.
 give_way_speed_mps             2.5     1.5    1.4    3.5    paper: SCVs slow to 5 km/h (1.4 m/s).
+critical_gap_factor            1.0     1.15   1.2    0.85   x the critical / follow-up headways of HCM 2010
+                                                            (cosim.driver.gap_acceptance); individual
+                                                            critical gaps spread by ~+-1 s around the mean
+                                                            (Brilon, Koenig, Troutbeck 1999) (assumption).
+time_to_impatience_s           60      90     120    40     waiting time after which the critical gap has
+                                                            shrunk to its floor (SUMO's impatience idea:
+                                                            --time-to-impatience; waits < a light cycle).
 a_brake_prob                   0.8     1.0    0.9    0.6    system A response (assumption, chosen to give
 a_brake_decel_mps2             3.0     4.0    3.0    2.5    the paper's "sudden braking then increased
 a_brake_duration_s             1.0     1.3    1.0    0.8    distance", Sec. VII.C).
@@ -100,6 +107,8 @@ class DriverProfile:
     stop_line_margin_m: float = 0.5  # [m] front bumper to line when stopped
     stop_dwell_s: float = 1.0  # [s] time at a full stop at a stop sign before looking to go
     give_way_speed_mps: float = 2.5  # [m/s] speed at a give-way line when the junction is clear
+    critical_gap_factor: float = 1.0  # [-] multiplies the literature critical / follow-up headways
+    time_to_impatience_s: float = 60.0  # [s] waiting until the accepted gap has shrunk to its floor
     # -- system A (rear display on the leader): sudden warning -----------------------------------------------
     a_brake_prob: float = 0.8  # [-] probability that a display onset triggers a braking response
     a_brake_decel_mps2: float = 3.0  # [m/s^2] deceleration of that response
@@ -121,6 +130,7 @@ class DriverProfile:
             "reaction_time_s perception_error_time_s desired_time_gap_s max_accel_mps2 comfort_decel_mps2 "
             "accel_exponent desired_speed_factor speed_wander_time_s max_lat_accel_mps2 pedal_rate_per_s "
             "preview_time_s min_lookahead_m lateral_wander_time_s yellow_max_decel_mps2 give_way_speed_mps "
+            "critical_gap_factor time_to_impatience_s "
             "a_brake_duration_s a_gap_decay_s b_target_gap_s b_adapt_time_s b_forget_time_s"
         ).split()
         non_negative = (
@@ -177,6 +187,8 @@ PROFILES: dict[str, DriverProfile] = {
         stop_line_margin_m=0.5,
         stop_dwell_s=1.0,
         give_way_speed_mps=2.5,
+        critical_gap_factor=1.0,
+        time_to_impatience_s=60.0,
         a_brake_prob=0.8,
         a_brake_decel_mps2=3.0,
         a_brake_duration_s=1.0,
@@ -207,6 +219,8 @@ PROFILES: dict[str, DriverProfile] = {
         stop_line_margin_m=0.7,
         stop_dwell_s=1.5,
         give_way_speed_mps=1.5,
+        critical_gap_factor=1.15,
+        time_to_impatience_s=90.0,
         a_brake_prob=1.0,
         a_brake_decel_mps2=4.0,
         a_brake_duration_s=1.3,
@@ -237,6 +251,8 @@ PROFILES: dict[str, DriverProfile] = {
         stop_line_margin_m=0.8,
         stop_dwell_s=2.0,
         give_way_speed_mps=1.4,
+        critical_gap_factor=1.2,
+        time_to_impatience_s=120.0,
         a_brake_prob=0.9,
         a_brake_decel_mps2=3.0,
         a_brake_duration_s=1.0,
@@ -268,6 +284,8 @@ PROFILES: dict[str, DriverProfile] = {
         stop_line_margin_m=0.3,
         stop_dwell_s=0.5,
         give_way_speed_mps=3.5,
+        critical_gap_factor=0.85,
+        time_to_impatience_s=40.0,
         a_brake_prob=0.6,
         a_brake_decel_mps2=2.5,
         a_brake_duration_s=0.8,
