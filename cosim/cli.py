@@ -3,17 +3,60 @@
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import math
 import signal
 import sys
 from pathlib import Path
 
-from cosim.errors import CosimError
+from cosim.config import check_seed
+from cosim.errors import ConfigError, CosimError, require_display
+from cosim.outdir import RunDir, check_dir, check_file
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors as one line (no usage block), exit code 2 like every other user error."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _seed(text: str) -> int:
+    try:
+        return check_seed(int(text), "--seed")
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    except ConfigError as exc:
+        raise argparse.ArgumentTypeError(exc.problem) from None
+
+
+def _seconds(text: str) -> float:
+    """A positive, finite number of seconds."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text}")
+    return value
+
+
+def _terminated(signum, frame):
+    """SIGTERM ends a run like Ctrl-C: the loop stops, the log is closed, the summary printed."""
+    global _signal_exit
+    _signal_exit = 128 + signum
+    raise KeyboardInterrupt
+
+
+_signal_exit = 130
 
 
 def _build_scenario(args) -> int:
     from cosim.scenario import build_scenario
 
+    if args.out:
+        check_dir(args.out)
     scn = build_scenario(args.osm, args.out, density=args.density, seed=args.seed)
     if args.check:
         from cosim.scenario.check import check_scenario
@@ -32,14 +75,16 @@ def _run(args) -> int:
     overrides = {"scenario.map": args.map, "scenario.demand.density": args.density, "duration_s": args.duration,
                  "seed": args.seed}  # fmt: skip
     config = load_run_config(args.config, **overrides)
+    if args.gui:
+        require_display("--gui (sumo-gui)")
     out = Path(args.out) if args.out else Path("results") / config.name
-    with Simulation(
-        config, out_dir=out, gui=args.gui, quiet=args.quiet, log=None if not args.quiet else (lambda *a: None)
-    ) as sim:
-        stats = sim.run()
+    say = None if not args.quiet else (lambda *a: None)
+    with RunDir(out, force=args.force):
+        with Simulation(config, out_dir=out, gui=args.gui, quiet=args.quiet, log=say) as sim:
+            stats = sim.run()
     stats["log"] = str(out / "run.mcap")
     print(json.dumps(stats) if args.quiet else "\n".join(f"{k}: {v}" for k, v in stats.items()))
-    return 130 if stats["interrupted"] else 0
+    return _signal_exit if stats["interrupted"] else 0
 
 
 def _log_info(args) -> int:
@@ -65,6 +110,8 @@ def _log_export(args) -> int:
     if args.topic not in log.topics:
         raise CosimError(f"{args.file} has no topic {args.topic} (topics: {', '.join(sorted(log.counts))})")
     cols = log.topics[args.topic]
+    if args.out:
+        check_file(args.out)
     out = open(args.out, "w", newline="") if args.out else sys.stdout  # noqa: SIM115
     try:
         writer = csv.writer(out)
@@ -85,8 +132,11 @@ def _experiment(args) -> int:
     exp, base = load_experiment(args.config, map_path=args.map, participants=args.participants,
                                 phase_duration_s=args.phase_duration,
                                 participant_driver=args.participant_driver)  # fmt: skip
+    if args.participant_driver:
+        require_display(f"--participant-driver {args.participant_driver}")
     out = Path(args.out) if args.out else Path("results") / exp.name
-    summary = run_experiment(exp, base, out, jobs=args.jobs, quiet=args.quiet)
+    with RunDir(out, force=args.force):
+        summary = run_experiment(exp, base, out, jobs=args.jobs, quiet=args.quiet)
     if not args.quiet:
         print((out / "summary.md").read_text())
     if args.clip:
@@ -110,7 +160,10 @@ def _clip(participant_dir: Path) -> None:
 def _compare(args) -> int:
     from cosim.experiment.compare import CompareTolerances, compare_files
 
-    tol = CompareTolerances(rmse_abs_s=args.rmse_tol) if args.rmse_tol is not None else None
+    try:
+        tol = CompareTolerances(rmse_abs_s=args.rmse_tol) if args.rmse_tol is not None else None
+    except ValueError:
+        raise CosimError(f"--rmse-tol must be a finite number of seconds >= 0, got {args.rmse_tol}") from None
     result = compare_files(args.a, args.b, tol)
     print(result.table())
     return 0 if result.ok else 1
@@ -125,7 +178,7 @@ def _vanet_report(args) -> int:
     log = read(args.file, topics=["/vanet/tx", "/vanet/rx", "/vanet/load", "/vanet/step"])
     if "/vanet/tx" not in log.topics:
         raise CosimError(f"{args.file} has no /vanet/* topics: the run had the radio off (vanet: null)")
-    out = Path(args.out) if args.out else Path(args.file).parent / "vanet"
+    out = check_dir(args.out if args.out else Path(args.file).parent / "vanet")
     print(json.dumps(vanet_report(log.topics, out), indent=1, default=str))
     print(f"plots in {out}/")
     return 0
@@ -134,17 +187,15 @@ def _vanet_report(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from cosim.scenario.demand import DENSITY_NAMES
 
-    p = argparse.ArgumentParser(
-        prog="cosim", description="Driving simulator with a lockstep VANET layer (SUMO + MuJoCo)."
-    )
+    p = _Parser(prog="cosim", description="Driving simulator with a lockstep VANET layer (SUMO + MuJoCo).")
     sub = p.add_subparsers(dest="command", required=True)
 
     b = sub.add_parser("build-scenario", help="build a SUMO scenario from an OSM file")
     b.add_argument("--osm", required=True, help="OSM file (.osm or .osm.gz)")
     b.add_argument("--out", help="directory to write the scenario into (default: only the cache)")
     b.add_argument("--density", choices=DENSITY_NAMES, default="medium")
-    b.add_argument("--seed", type=int, default=0)
-    b.add_argument("--check", type=float, metavar="SECONDS",
+    b.add_argument("--seed", type=_seed, default=0)
+    b.add_argument("--check", type=_seconds, metavar="SECONDS",
                    help="then run SECONDS of its traffic in SUMO and report teleports (added to report.json)")  # fmt: skip
     b.set_defaults(fn=_build_scenario)
 
@@ -153,8 +204,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--map", help="OSM file to run on instead of the config's map")
     r.add_argument("--density", choices=DENSITY_NAMES)
     r.add_argument("--duration", type=float, help="simulated seconds")
-    r.add_argument("--seed", type=int)
+    r.add_argument("--seed", type=_seed)
     r.add_argument("--out", help="output directory (default results/<name>)")
+    r.add_argument(
+        "--force", action="store_true", help="replace a run already in --out (its outputs are removed)"
+    )
     r.add_argument("--gui", action="store_true", help="watch in sumo-gui (TraCI backend)")
     r.add_argument("--quiet", action="store_true", help="no progress bar; print the result as JSON")
     r.set_defaults(fn=_run)
@@ -166,6 +220,8 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--phase-duration", type=float, help="seconds per phase (default: the config's)")
     ex.add_argument("--jobs", type=int, help="parallel processes (default: cores)")
     ex.add_argument("--out", help="output directory (default results/<name>)")
+    ex.add_argument("--force", action="store_true",
+                    help="replace an experiment already in --out (its outputs are removed)")  # fmt: skip
     ex.add_argument("--quiet", action="store_true")
     ex.add_argument(
         "--participant-driver",
@@ -215,6 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     # a run started from a script in the background inherits SIGINT ignored; it must still stop cleanly
     # (with a complete log) when someone sends it SIGINT
     signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _terminated)
     try:
         return args.fn(args)
     except CosimError as exc:
@@ -222,11 +279,19 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt:
         print("cosim: interrupted", file=sys.stderr)
-        return 130
+        return _signal_exit
+    except OSError as exc:  # a write the checks above could not foresee (disk full, permission changed ...)
+        if exc.filename is None or exc.errno not in _USER_ERRNOS:
+            raise
+        print(f"cosim: error: cannot write {exc.filename}: {exc.strerror}", file=sys.stderr)
+        return 2
     except BrokenPipeError:  # output piped into `head`
         sys.stderr.close()
         return 0
 
+
+_USER_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENOSPC,
+                errno.EDQUOT}  # fmt: skip
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -3,13 +3,15 @@
 The loader is generic: any frozen dataclass whose fields have type hints (int, float, bool, str, Literal,
 tuple[...], X | None, nested dataclasses, dict[str, X]) can be filled from a mapping. Unknown keys and
 wrong types are rejected with the key's full path, e.g. ``config vanet.channel.tx_power_mw: expected a
-number, got 'high'``. Each package owns the parameter dataclass of its own logic; this module composes them
+number, got 'high'``. Every number must be finite (no nan / inf), and every seed (a key named ``seed`` or
+``*_seed``) within SUMO's range (``check_seed``), so a bad value fails here, before anything is built. Each package owns the parameter dataclass of its own logic; this module composes them
 into the run config.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import types
 import typing
 from pathlib import Path
@@ -20,6 +22,19 @@ import yaml
 from cosim.errors import ConfigError, CosimError
 
 T = TypeVar("T")
+
+SEED_MAX = 2**31 - 1  # SUMO's --seed is a 32-bit signed integer; numpy takes any integer >= 0
+
+
+def check_seed(value: int, path: str = "seed") -> int:
+    """A seed every consumer accepts (numpy: >= 0, SUMO: a 32-bit integer); else a ConfigError naming it."""
+    if not 0 <= value <= SEED_MAX:
+        raise ConfigError(path, f"must be an integer from 0 to {SEED_MAX} (SUMO's seed range), got {value}")
+    return value
+
+
+def _is_seed(name: str) -> bool:
+    return name == "seed" or name.endswith("_seed")
 
 
 def _type_name(tp: Any) -> str:
@@ -79,6 +94,8 @@ def _convert(value: Any, tp: Any, path: str) -> Any:
         raise ConfigError(path, f"expected an integer, got {value!r}")
     if tp is float:
         if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if not math.isfinite(value):  # nan / inf: no duration, rate or distance is infinite
+                raise ConfigError(path, f"expected a finite number, got {value!r}")
             return float(value)
         raise ConfigError(path, f"expected a number, got {value!r}")
     if tp is str:
@@ -120,6 +137,8 @@ def from_dict(cls: type[T], data: Any, path: str = "") -> T:
         where = f"{path}.{name}" if path else name
         if name in data:
             kwargs[name] = _convert(data[name], hints[name], where)
+            if _is_seed(name) and isinstance(kwargs[name], int):
+                check_seed(kwargs[name], where)
         elif field.default is dataclasses.MISSING and field.default_factory is dataclasses.MISSING:
             raise ConfigError(where, "missing (this key is required)")
     try:

@@ -76,7 +76,7 @@ class LogConfig:
     traffic_every_steps: int = 5  # /traffic/vehicles every N base steps (0 = off)
     scene_every_steps: int = 10  # /scene (Foxglove boxes) every N steps (0 = off)
     scene_radius_m: float = 400.0  # vehicles farther from the ego are left out of /scene
-    flush_every_s: float = 2.0  # wall-clock interval of crash-safe flushes
+    flush_every_s: float = 2.0  # a log chunk per this many simulated seconds at most (crash-safe flushes) [s]
 
     def __post_init__(self):
         if self.traffic_every_steps < 0 or self.scene_every_steps < 0 or self.flush_every_s <= 0:
@@ -99,7 +99,10 @@ class RunConfig:
 
     def __post_init__(self):
         if self.duration_s <= 0:
-            raise ValueError("duration_s must be > 0")
+            raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
+        if round(self.duration_s / self.timing.sumo_step_s) < 1:
+            raise ValueError(f"duration_s ({self.duration_s} s) is shorter than one step: give at least "
+                             f"timing.sumo_step_s ({self.timing.sumo_step_s} s)")  # fmt: skip
         if self.scenario.demand.area == "around_ego" and not self.ego.enabled:
             raise ValueError(
                 "scenario.demand.area: around_ego generates traffic around the ego: needs ego.enabled"

@@ -2,7 +2,7 @@
 
 Messages whose fields are lists of equal length (per-vehicle columns) are exploded into one row per item,
 with the message's scalar fields repeated. A file cut short by a crash is read up to its last complete
-chunk (``truncated`` says so).
+chunk (``truncated`` says so); a damaged chunk elsewhere (CRC mismatch, bad zstd data) is a CosimError.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from mcap.exceptions import McapError
 from mcap.records import Channel, Chunk, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 
 from cosim.errors import CosimError
 
@@ -61,12 +61,12 @@ def iter_messages(path: str | Path):
             raise CosimError(f"{path} is not an MCAP file")
         fh.seek(0)
         try:
-            for record in StreamReader(fh, skip_magic=False).records:
+            for record in StreamReader(fh, skip_magic=False, emit_chunks=True).records:
                 if isinstance(record, Chunk):
                     try:
                         inner = breakup_chunk(record, validate_crc=True)
-                    except Exception:  # corrupt final chunk
-                        return True
+                    except Exception as exc:  # a chunk read whole but damaged: not a crash's cut-off tail
+                        raise _corrupt(path, record, exc) from None
                 else:
                     inner = [record]
                 for r in inner:
@@ -81,6 +81,22 @@ def iter_messages(path: str | Path):
         except (McapError, EOFError, ValueError, KeyError, struct.error):  # cut short by a crash
             return True
     return False
+
+
+def _corrupt(path: Path, chunk: Chunk, exc: Exception) -> CosimError:
+    what = "CRC mismatch" if isinstance(exc, CRCValidationError) else f"cannot decompress: {exc}"
+    return CosimError(
+        f"{path} is damaged: the chunk of messages at {chunk.message_start_time / 1e9:.1f}-"
+        f"{chunk.message_end_time / 1e9:.1f} s is corrupt ({what}); re-run to get a good log or restore a copy"
+    )
+
+
+def _decode(path: Path, topic: str, t_ns: int, data: bytes):
+    try:
+        return json.loads(data)
+    except ValueError:
+        raise CosimError(f"{path} is damaged: a {topic} message at {t_ns / 1e9:.1f} s is not valid JSON; "
+                         f"re-run to get a good log or restore a copy") from None  # fmt: skip
 
 
 def _columns(messages: list[dict]) -> dict[str, np.ndarray]:
@@ -141,7 +157,7 @@ def read(path: str | Path, topics: list[str] | None = None, keep_raw: bool = Fal
         start = t if start is None else min(start, t)
         end = t if end is None else max(end, t)
         if topics is None or topic in topics:
-            decoded[topic].append(json.loads(data))
+            decoded[topic].append(_decode(path, topic, t, data))
             if keep_raw:
                 raw[topic].append(bytes(data))
     return Log(path, {k: _columns(v) for k, v in decoded.items()}, dict(counts), metadata, start, end, truncated,

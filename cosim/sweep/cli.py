@@ -32,6 +32,7 @@ def main_sweep(args) -> int:
     from pathlib import Path
 
     from cosim.errors import CosimError
+    from cosim.outdir import RunDir, check_dir
     from cosim.sweep.backends import make_backend
     from cosim.sweep.runner import plan, run_sweep
     from cosim.sweep.spec import load_sweep
@@ -41,7 +42,7 @@ def main_sweep(args) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise CosimError(f"--jobs must be >= 1, got {args.jobs}")
     sweep = load_sweep(args.sweep)
-    out = Path(args.out) if args.out else Path("results") / sweep.spec.name
+    out = check_dir(args.out if args.out else Path("results") / sweep.spec.name)
     if args.dry_run:
         planned = plan(sweep, out)
         for p in planned:
@@ -55,21 +56,22 @@ def main_sweep(args) -> int:
             print(f"{p.run.run_id}  {what:<24} {p.run.label()}{err}")
         print(f"{len(planned)} runs, {sum(p.state == 'done' for p in planned)} done -> {out}")
         return 0
-    todo = sum(p.state in ("todo", "redo") for p in plan(sweep, out))
-    backend = (
-        make_backend(args.backend, jobs=args.jobs, n_runs=max(1, todo), address=args.address)
-        if todo
-        else None
-    )
+    with RunDir(out, keep_existing=True):  # locked while written; a re-run resumes it: finished runs stay
+        todo = sum(p.state in ("todo", "redo") for p in plan(sweep, out))
+        backend = (
+            make_backend(args.backend, jobs=args.jobs, n_runs=max(1, todo), address=args.address)
+            if todo
+            else None
+        )
 
-    def say(line: str) -> None:
-        print(line, flush=True)
+        def say(line: str) -> None:
+            print(line, flush=True)
 
-    try:
-        result = run_sweep(sweep, backend=backend, out_dir=out, say=say)
-    finally:
-        if backend is not None:
-            backend.close()
+        try:
+            result = run_sweep(sweep, backend=backend, out_dir=out, say=say)
+        finally:
+            if backend is not None:
+                backend.close()
     for note in result.notes:
         print(f"note: {note}")
     print(f"{result.ok}/{len(result.results)} runs ok ({result.skipped} skipped as done), "

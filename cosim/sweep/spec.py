@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim.config import from_dict, read_yaml
+from cosim.config import check_seed, from_dict, read_yaml
 from cosim.errors import CosimError
 
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
@@ -94,6 +94,8 @@ class SweepSpec:
             _check_key(str(key), "overrides")
         if len(set(self.seeds)) != len(self.seeds):
             raise ValueError("seeds repeat")
+        for i, seed in enumerate(self.seeds):
+            check_seed(seed, f"seeds[{i}]")
         if self.duration_s is not None and self.duration_s <= 0:
             raise ValueError(f"duration_s must be > 0, got {self.duration_s}")
         edges = self.pdr_bands_m

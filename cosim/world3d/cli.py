@@ -12,7 +12,8 @@ import json
 import sys
 from pathlib import Path
 
-from cosim.errors import CosimError
+from cosim.errors import CosimError, require_display
+from cosim.outdir import RunDir, check_dir, check_file
 
 CAMERAS = ("driver", "chase", "top")
 
@@ -38,6 +39,9 @@ def add_drive_parser(subparsers) -> argparse.ArgumentParser:
     d.add_argument("--duration", type=float, help="simulated (= wall-clock) seconds")
     d.add_argument("--seed", type=int)
     d.add_argument("--out", help="output directory (default results/<name>-drive)")
+    d.add_argument(
+        "--force", action="store_true", help="replace a run already in --out (its outputs are removed)"
+    )
     d.add_argument("--camera", choices=CAMERAS, default="driver", help="first camera (C cycles)")
     d.add_argument("--size", type=_size, default=(1280, 720), help="window size WxH (default 1280x720)")
     d.add_argument("--fps", type=float, default=30.0, help="frames per second at most (default 30)")
@@ -63,11 +67,14 @@ def main_drive(args) -> int:
                              smooth=not args.no_smooth, fullscreen=args.fullscreen)  # fmt: skip
     except ValueError as exc:
         raise CosimError(str(exc)) from None
-    if not args.quiet:
-        print(f"cosim drive: {config.ego.driver.kind} driver, {config.duration_s:.0f} s, logging to "
-              f"{out / 'run.mcap'}; Esc ends, C changes the camera", file=sys.stderr)  # fmt: skip
-    stats = run_drive(config, out, params, quiet=args.quiet,
-                      ready=lambda: print("cosim drive: ready", file=sys.stderr, flush=True))  # fmt: skip
+    if config.ego.driver.kind in ("keyboard", "wheel"):
+        require_display(f"cosim drive --driver {config.ego.driver.kind}")
+    with RunDir(out, force=args.force):
+        if not args.quiet:
+            print(f"cosim drive: {config.ego.driver.kind} driver, {config.duration_s:.0f} s, logging to "
+                  f"{out / 'run.mcap'}; Esc ends, C changes the camera", file=sys.stderr)  # fmt: skip
+        stats = run_drive(config, out, params, quiet=args.quiet,
+                          ready=lambda: print("cosim drive: ready", file=sys.stderr, flush=True))  # fmt: skip
     print(json.dumps(stats) if args.quiet else "\n".join(f"{k}: {v}" for k, v in stats.items()))
     return 0
 
@@ -103,6 +110,10 @@ def main_render(args) -> int:
     out = args.out
     if out is None and args.frames is None:
         out = str(Path(args.log).with_name(f"{args.camera}.mp4"))
+    if out is not None:
+        check_file(out, "--out")
+    if args.frames is not None:
+        check_dir(args.frames, "--frames")
     summary = render_log(args.log, out, args.frames, params, scenario_dir=args.scenario, quiet=args.quiet)
     if args.quiet:
         print(json.dumps(summary))

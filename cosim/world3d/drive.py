@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import cosim.world3d.render as render_mod  # first: sets MUJOCO_GL before MuJoCo is imported
-from cosim.errors import CosimError
+from cosim.errors import CosimError, require_display
 from cosim.world3d.live import LiveSource
 from cosim.world3d.scene import Scene, SceneParams, build_scene
 from cosim.world3d.state import Interpolator
@@ -250,6 +250,10 @@ def run_drive(config, out_dir: str | Path | None, params: DriveParams | None = N
     from cosim.driver import KeyboardDriver
     from cosim.sim import Simulation
 
+    if config.ego.driver.kind in ("keyboard", "wheel") and key_source is None:
+        # a person drives: without a display SDL falls back to an invisible window, and a run nobody drove
+        # would be logged as if someone had
+        require_display(f"cosim drive with the {config.ego.driver.kind} driver")
     session = DriveSession(params)
     try:
         drv = config.ego.driver
