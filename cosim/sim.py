@@ -28,31 +28,35 @@ PHASES = ("sumo", "vanet", "adas", "driver", "ego", "writeback", "log")
 
 
 class Progress:
-    """One self-rewriting line on stderr: simulated time, vehicles and real-time factor."""
+    """A tqdm bar on stderr: simulated time of the total, vehicles and real-time factor."""
 
     def __init__(self, total_s: float, enabled: bool):
         self.total_s = total_s
         self.enabled = enabled and total_s > 0
         self.t0 = time.perf_counter()
-        self.last = 0.0
+        self.last = 0.0  # wall time of the last redraw
+        self._bar = None
+        if self.enabled:
+            self._bar = tqdm(total=round(total_s, 3), unit="sim s", file=sys.stderr, dynamic_ncols=True,
+                             bar_format="{l_bar}{bar}| {n:.1f}/{total:.0f} s [{elapsed}<{remaining}{postfix}]")  # fmt: skip
+        from tqdm import tqdm
+
 
     def update(self, t_s: float, vehicles: int, force: bool = False) -> None:
         now = time.perf_counter()
-        if not self.enabled or (now - self.last < 0.5 and not force):
+        if self._bar is None or (now - self.last < 0.5 and not force):
             return
         self.last = now
         wall = now - self.t0
         rtf = t_s / wall if wall > 0 else 0.0
-        frac = min(1.0, t_s / self.total_s)
-        bar = "#" * int(frac * 30)
-        sys.stderr.write(
-            f"\r[{bar:<30}] {t_s:7.1f}/{self.total_s:.0f} s  {vehicles:5d} vehicles  {rtf:6.1f}x real time"
-        )
-        sys.stderr.flush()
+        self._bar.n = round(min(t_s, self.total_s), 3)
+        self._bar.set_postfix_str(f"{vehicles} vehicles, {rtf:.1f}x real time", refresh=False)
+        self._bar.refresh()
 
     def done(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
 
 
 class Simulation:

@@ -6,11 +6,13 @@ thread would not help: libsumo keeps the GIL while SUMO steps). Messages keep th
 writer), so the file is as deterministic as before; ``write_deferred`` moves the building of a large
 payload (per-vehicle columns) to the writer too.
 
-Crash safety: chunks are small and the writer is flushed (chunk closed, bytes handed to the OS) every
-``flush_every_s`` of wall time, so a killed writer loses at most that much; ``cosim.log.read`` reads such
-a file up to the last complete chunk. Ctrl-C ends the run through ``close()``, which writes the summary;
-the writer ignores Ctrl-C itself and, if the simulation process is killed, writes what reached it and
-closes the file.
+Chunking follows the content only, never the wall clock, so the same run gives the same bytes: a chunk is
+closed when its uncompressed size reaches ``chunk_size`` or when a message is ``flush_every_s`` of
+*simulated* time past the chunk's start, whichever comes first. Crash safety: each closed chunk is handed
+to the OS at once, so a killed run loses at most the last ``flush_every_s`` simulated seconds;
+``cosim.log.read`` reads such a file up to the last complete chunk. Ctrl-C (or SIGTERM) ends the run
+through ``close()``, which writes the summary; the writer ignores both itself and, if the simulation
+process is killed, writes what reached it and closes the file.
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -78,8 +79,8 @@ class _File:
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="cosim")
         self._channels: dict[str, int] = {}
-        self._flush_every_s = flush_every_s
-        self._last_flush = time.monotonic()
+        self._flush_every_ns = round(flush_every_s * 1e9)
+        self._chunk_end_ns: int | None = None  # the open chunk is closed at the first message from here on
         self.count = 0
 
     def channel(self, topic: str, schema: dict | None = None) -> int:
@@ -93,14 +94,15 @@ class _File:
         if build is not None:
             message = build(*args)
         data = message if isinstance(message, bytes) else encode(message)
+        if self._chunk_end_ns is None:
+            self._chunk_end_ns = ns + self._flush_every_ns
+        elif ns >= self._chunk_end_ns:  # by simulated time, so the chunk boundaries are the same every run
+            self._writer.flush()  # close the chunk and hand it to the OS: a killed run keeps it
+            self._chunk_end_ns = ns + self._flush_every_ns
         self._writer.add_message(
             self.channel(topic), log_time=ns, data=data, publish_time=ns, sequence=self.count
         )
         self.count += 1
-        now = time.monotonic()
-        if now - self._last_flush > self._flush_every_s:
-            self._last_flush = now
-            self._writer.flush()
 
     def metadata(self, name: str, data: dict[str, str]) -> None:
         self._writer.add_metadata(name, data)
@@ -114,6 +116,7 @@ class _File:
 def _serve(path: str, chunk_size: int, flush_every_s: float) -> None:
     """The writer process: apply (method, args) records from stdin to the file until end of input."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the run decides when the log ends
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # ... also when a service manager stops every process
     out = _File(Path(path), chunk_size, flush_every_s)
     stdin = sys.stdin.buffer
     try:
@@ -130,7 +133,8 @@ def _serve(path: str, chunk_size: int, flush_every_s: float) -> None:
 class McapLog:
     def __init__(self, path: str | Path, *, chunk_size: int = 256 * 1024, flush_every_s: float = 2.0,
                  background: bool = True):  # fmt: skip
-        """``background`` writes from a child process (see the module doc); else in this process."""
+        """``background`` writes from a child process (see the module doc); else in this process.
+        ``flush_every_s``: a chunk spans at most this much simulated time (crash-safe flushes)."""
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.closed = False
@@ -164,10 +168,10 @@ class McapLog:
             getattr(self._file, method)(*args)
             return
         data = pickle.dumps((method, args), protocol=pickle.HIGHEST_PROTOCOL)
-        # Ctrl-C waits until the record is in the pipe: half a record would cost the writer the file's end
+        # Ctrl-C / SIGTERM wait until the record is in the pipe: half a record would cost the file its end
         masked = threading.current_thread() is threading.main_thread()
         if masked:
-            old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+            old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             self._proc.stdin.write(data)
         except (BrokenPipeError, OSError):
