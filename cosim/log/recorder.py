@@ -1,4 +1,9 @@
-"""The log phase: what a step writes to the run's MCAP file."""
+"""The log phase: what a step writes to the run's MCAP file.
+
+Every topic's channel is registered with its schema from ``cosim.log.schemas.TOPIC_SCHEMAS`` when it is
+first written. With the Foxglove scene on (``log.scene_every_steps`` > 0), ``/map`` gets the scenario's
+static map once at t = 0 (``cosim.log.map_scene``) and ``/scene`` the vehicles every that many steps.
+"""
 
 from __future__ import annotations
 
@@ -7,6 +12,8 @@ import math
 
 import numpy as np
 
+from cosim.log.map_scene import map_scene_update
+from cosim.log.schemas import TOPIC_SCHEMAS
 from cosim.sumo_bridge.bridge import EGO_ID
 
 
@@ -21,6 +28,15 @@ class Recorder:
         self.log = sim.mcap
         self.cfg = sim.config.log
         self._tls_state: dict[str, str] = {}
+        self._channels: set[str] = set()
+        if self.cfg.scene_every_steps:
+            self._channel("/map")
+            self.log.write_deferred("/map", 0.0, map_scene_update, str(sim.scenario.dir))
+
+    def _channel(self, topic: str) -> None:
+        """Register ``topic`` with its declared schema before its first message."""
+        self._channels.add(topic)
+        self.log.channel(topic, TOPIC_SCHEMAS.get(topic))
 
     def __call__(self, sim) -> None:
         w, t, step, log = sim.world, sim.world.t_s, sim.world.step, self.log
@@ -36,9 +52,13 @@ class Recorder:
                 "on_road": bool(sim.bridge.ego_on_road),
             }  # fmt: skip
             msg.update(sim.outputs.get("ego_log", {}))
+            if "/ego/state" not in self._channels:
+                self._channel("/ego/state")
             log.write("/ego/state", t, msg)
         every = self.cfg.traffic_every_steps
         if every and step % every == 0:  # built and encoded by the writer, from copies of the columns
+            if "/traffic/vehicles" not in self._channels:
+                self._channel("/traffic/vehicles")
             idx = np.flatnonzero(w.valid & ~w.is_ego)
             names = w.edge_names
             log.write_deferred("/traffic/vehicles", t, _traffic, t, step, [w.ids[i] for i in idx.tolist()], idx,
@@ -49,17 +69,23 @@ class Recorder:
         changed = [(i, s) for i, s in zip(ids, states, strict=True) if self._tls_state.get(i) != s]
         if changed:
             self._tls_state.update(changed)
+            if "/traffic/lights" not in self._channels:
+                self._channel("/traffic/lights")
             log.write("/traffic/lights", t, {"t_s": t, "step": step, "id": [c[0] for c in changed],
                                              "state": [c[1] for c in changed]})  # fmt: skip
         for ev in sim.events:
+            if "/events" not in self._channels:
+                self._channel("/events")
             log.write("/events", t, {"t_s": t, "step": step, "kind": ev.kind, "vehicle": ev.vehicle,
                                      "detail": ev.detail, "value": ev.value})  # fmt: skip
-        for topic, msg in sim.outputs.get(
-            "log", {}
-        ).items():  # other phases' records (/vanet/*, /adas/*, ...)
+        for topic, msg in sim.outputs.get("log", {}).items():  # other phases' (/vanet/*, /adas/*, ...)
+            if topic not in self._channels:
+                self._channel(topic)
             log.write(topic, t, msg)
         scene_every = self.cfg.scene_every_steps
         if scene_every and step % scene_every == 0:
+            if "/scene" not in self._channels:
+                self._channel("/scene")
             cx, cy = w.centre_xy()
             idx = np.flatnonzero(w.valid)
             ego = w.ego_slot
@@ -109,8 +135,9 @@ _SCV_COLOR = '{"r":0.3,"g":0.5,"b":0.9,"a":0.9}'
 # one foxglove.SceneEntity with a single cube; fields: stamp, id, x, y, qz, qw, length, width, colour
 _ENTITY = (
     '{"timestamp":%s,"frame_id":"map","id":%s,"lifetime":{"sec":0,"nsec":0},"frame_locked":false,'
-    '"metadata":[],"cubes":[{"pose":{"position":{"x":%s,"y":%s,"z":0.75},'
-    '"orientation":{"x":0.0,"y":0.0,"z":%s,"w":%s}},"size":{"x":%s,"y":%s,"z":1.5},"color":%s}]}'
+    '"metadata":[],"arrows":[],"cubes":[{"pose":{"position":{"x":%s,"y":%s,"z":0.75},'
+    '"orientation":{"x":0.0,"y":0.0,"z":%s,"w":%s}},"size":{"x":%s,"y":%s,"z":1.5},"color":%s}],'
+    '"spheres":[],"cylinders":[],"lines":[],"triangles":[],"texts":[],"models":[]}'
 )
 
 

@@ -28,10 +28,11 @@ def _scene_dict(t, ids, cx, cy, heading, length, width, is_ego) -> dict:
         )
         entities.append({
             "timestamp": stamp, "frame_id": "map", "id": vid, "lifetime": {"sec": 0, "nsec": 0},
-            "frame_locked": False, "metadata": [],
+            "frame_locked": False, "metadata": [], "arrows": [],
             "cubes": [{"pose": {"position": {"x": round(float(cx[i]), 2), "y": round(float(cy[i]), 2), "z": 0.75},
                                 "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}},
                        "size": {"x": float(length[i]), "y": float(width[i]), "z": 1.5}, "color": color}],
+            "spheres": [], "cylinders": [], "lines": [], "triangles": [], "texts": [], "models": [],
         })  # fmt: skip
     return {"deletions": [{"timestamp": stamp, "type": 1, "id": ""}], "entities": entities}
 
