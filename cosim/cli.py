@@ -102,26 +102,11 @@ def _log_info(args) -> int:
 
 
 def _log_export(args) -> int:
-    import csv
+    from cosim.log.export import export_topic
 
-    from cosim.log import read
-
-    log = read(args.file, topics=[args.topic])
-    if args.topic not in log.topics:
-        raise CosimError(f"{args.file} has no topic {args.topic} (topics: {', '.join(sorted(log.counts))})")
-    cols = log.topics[args.topic]
     if args.out:
         check_file(args.out)
-    out = open(args.out, "w", newline="") if args.out else sys.stdout  # noqa: SIM115
-    try:
-        writer = csv.writer(out)
-        names = [k for k, v in cols.items() if v.ndim == 1]
-        writer.writerow(names)
-        for row in zip(*(cols[k] for k in names), strict=True):
-            writer.writerow(row)
-    finally:
-        if args.out:
-            out.close()
+    export_topic(args.file, args.topic, args.out, args.format)
     return 0
 
 
@@ -256,11 +241,13 @@ def build_parser() -> argparse.ArgumentParser:
     li = lsub.add_parser("info", help="topics, counts and duration")
     li.add_argument("file")
     li.set_defaults(fn=_log_info)
-    le = lsub.add_parser("export", help="export one topic as CSV")
+    le = lsub.add_parser("export", help="export one topic as CSV or JSON lines")
     le.add_argument("file")
     le.add_argument("--topic", required=True)
-    le.add_argument("--csv", action="store_true", default=True, help="CSV output (the only format)")
-    le.add_argument("--out", help="CSV file (default: stdout)")
+    le.add_argument("--format", choices=["csv", "json"], default="csv",
+                    help="csv: one row per item; json: JSON lines, one message per line (nested topics)")  # fmt: skip
+    le.add_argument("--csv", dest="format", action="store_const", const="csv", help=argparse.SUPPRESS)
+    le.add_argument("--out", help="output file (default: stdout)")
     le.set_defaults(fn=_log_export)
     return p
 
