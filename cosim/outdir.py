@@ -118,6 +118,9 @@ class RunDir:
 
     def _release(self) -> None:
         if self._lock is not None:
+            # unlinked while still held, so nothing is left behind; a contender that opened it meanwhile sees
+            # the inode gone once it gets the lock and starts over (filelock checks that)
+            (self.path / LOCK_NAME).unlink(missing_ok=True)
             self._lock.release()
             self._lock = None
 

@@ -6,6 +6,7 @@ import gzip
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from osm_factory import OsmSketch
@@ -98,3 +99,159 @@ def test_config_errors_name_the_key(tmp_path, yaml_text, words):
     proc = cosim("run", str(cfg), "--out", str(tmp_path / "o"))
     assert proc.returncode == 2, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and words in proc.stderr, proc.stderr
+
+
+# -- every command: one line naming the problem and the fix, exit 2, nothing written ---------------------
+
+
+@pytest.fixture(scope="module")
+def small_map(tmp_path_factory):
+    from osm_factory import crossroads
+
+    return crossroads().write(tmp_path_factory.mktemp("map") / "x.osm")
+
+
+def one_line(proc, words: str) -> str:
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert words in lines[0], lines[0]
+    return lines[0]
+
+
+def unwritable_dir(tmp_path):
+    """A directory this process may not create entries in (root ignores permission bits: /proc/1 then)."""
+    if os.geteuid() == 0:
+        if os.access("/proc/1", os.W_OK):
+            pytest.skip("no unwritable directory for root here")
+        return Path("/proc/1")
+    d = tmp_path / "ro"
+    d.mkdir()
+    d.chmod(0o500)
+    return d
+
+
+@pytest.fixture
+def damaged_log(tmp_path):
+    """A complete MCAP log (with the topics every reader looks for) whose third of six chunks is damaged."""
+    from mcap.reader import make_reader
+
+    from cosim.log import McapLog
+
+    path = tmp_path / "damaged.mcap"
+    with McapLog(path, chunk_size=2048, flush_every_s=1.0, background=False) as log:
+        log.metadata("cosim", {"seed": 1, "config": "{}"})
+        for i in range(60):
+            t = i * 0.1
+            log.write("/ego/state", t, {"t_s": t, "x_m": float(i), "note": "x" * 40})
+            log.write("/adas/state", t, {"t_s": t, "b_timegap_s": 2.5})
+            log.write("/vanet/tx", t, {"t_s": t, "station": [1, 2], "bytes": [200, 300]})
+    with path.open("rb") as fh:
+        chunks = make_reader(fh).get_summary().chunk_indexes
+    assert len(chunks) >= 5
+    data = bytearray(path.read_bytes())
+    mid = chunks[2]
+    start = mid.chunk_start_offset + mid.chunk_length // 2
+    for i in range(start, start + 16):
+        data[i] ^= 0x5A
+    path.write_bytes(bytes(data))
+    return path
+
+
+def test_damaged_chunk_is_one_line_for_every_reader(tmp_path, damaged_log):
+    cases = {
+        "log info": ("log", "info", damaged_log),
+        "log export": ("log", "export", damaged_log, "--topic", "/ego/state", "--out", tmp_path / "e.csv"),
+        "render": ("render", damaged_log, "--frames", tmp_path / "frames", "--size", "64x64"),
+        "compare": ("compare", damaged_log, damaged_log),
+        "vanet-report": ("vanet-report", damaged_log, "--out", tmp_path / "vr"),
+    }
+    for name, args in cases.items():
+        line = one_line(cosim(*map(str, args)), "is damaged")
+        assert "re-run" in line and "damaged.mcap" in line, (name, line)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.mcap"]  # no CSV, frames or plots
+
+
+def test_out_that_cannot_be_a_directory(tmp_path, small_map, damaged_log):
+    a_file = tmp_path / "a_file"
+    a_file.write_text("x")
+    ro = unwritable_dir(tmp_path)
+    cfg = ("--map", str(small_map), "--duration", "2", "--quiet")
+    for out, words in ((a_file, "is a file, not a directory"), (a_file / "sub", "which is a file"),
+                       (ro / "sub", "no permission to write")):  # fmt: skip
+        one_line(cosim("run", *cfg, "--out", str(out)), words)
+        one_line(cosim("build-scenario", "--osm", str(small_map), "--out", str(out)), words)
+        one_line(cosim("vanet-report", str(damaged_log), "--out", str(out)), words)
+        one_line(cosim("render", str(damaged_log), "--frames", str(out)), words)
+        sweep = tmp_path / "s.yaml"
+        sweep.write_text(f"name: s\noverrides: {{scenario.map: {small_map}, duration_s: 2}}\nseeds: [1]\n")
+        one_line(cosim("sweep", str(sweep), "--out", str(out)), words)
+    one_line(cosim("render", str(damaged_log), "--out", str(a_file / "v.mp4")), "which is a file")
+    one_line(cosim("log", "export", str(damaged_log), "--topic", "/ego/state", "--out", str(tmp_path)),
+             "is a directory")  # fmt: skip
+    one_line(cosim("log", "export", str(damaged_log), "--topic", "/ego/state", "--out", str(ro / "e.csv")),
+             "no permission")  # fmt: skip
+    assert a_file.read_text() == "x"
+
+
+def _scenarios():
+    root = Path(os.environ["COSIM_CACHE_DIR"]) / "scenarios"
+    return sorted(os.listdir(root)) if root.is_dir() else []
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (("--duration", "nan"), "config duration_s: expected a finite number, got nan"),
+        (("--duration", "inf"), "config duration_s: expected a finite number, got inf"),
+        (("--duration", "0.05"), "shorter than one step"),
+        (("--seed", "-1"), "--seed: must be an integer from 0 to 2147483647"),
+        (("--seed", str(2**31)), "--seed: must be an integer from 0 to 2147483647"),
+        (("--gui",), "--gui (sumo-gui) needs a display"),
+    ],
+)
+def test_run_refuses_before_building_anything(tmp_path, small_map, args, words):
+    before = _scenarios()
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = subprocess.run([sys.executable, "-m", "cosim.cli", "run", "--map", str(small_map), "--seed", "7",
+                           "--duration", "3", *args, "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, env=env)  # fmt: skip
+    one_line(proc, words)
+    assert not (tmp_path / "o").exists()
+    assert _scenarios() == before  # no scenario built (a too-large seed used to leave a broken one)
+
+
+def test_seed_in_a_config_file_is_checked_too(tmp_path, small_map):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(f"seed: {2**40}\nscenario: {{map: {small_map}}}\n")
+    one_line(cosim("run", str(cfg), "--out", str(tmp_path / "o")), "config seed: must be an integer from 0")
+    cfg.write_text(f"scenario: {{map: {small_map}}}\nego: {{driver_seed: -3}}\n")
+    one_line(cosim("run", str(cfg), "--out", str(tmp_path / "o")), "config ego.driver_seed: must be")
+    assert not (tmp_path / "o").exists()
+
+
+def test_build_scenario_check_must_be_positive(tmp_path, small_map):
+    before = _scenarios()
+    one_line(cosim("build-scenario", "--osm", str(small_map), "--check", "-5", "--out", str(tmp_path / "o")),
+             "argument --check: must be a finite number of seconds > 0, got -5")  # fmt: skip
+    assert not (tmp_path / "o").exists() and _scenarios() == before
+
+
+def test_compare_rmse_tol_must_be_non_negative(damaged_log):
+    one_line(cosim("compare", str(damaged_log), str(damaged_log), "--rmse-tol", "-1"),
+             "--rmse-tol must be a finite number of seconds >= 0, got -1.0")  # fmt: skip
+
+
+@pytest.mark.parametrize("how", ["drive", "experiment"])
+def test_a_person_driving_needs_a_display(tmp_path, small_map, how):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER")}
+    if how == "drive":
+        args = ["drive", "--map", str(small_map), "--driver", "keyboard", "--duration", "3"]
+        words = "cosim drive --driver keyboard needs a display"
+    else:
+        args = ["experiment", "configs/experiment.yaml", "--participant-driver", "keyboard"]
+        words = "--participant-driver keyboard needs a display"
+    proc = subprocess.run([sys.executable, "-m", "cosim.cli", *args, "--out", str(tmp_path / "o")],
+                          capture_output=True, text=True, env=env, cwd=Path(__file__).parents[2])  # fmt: skip
+    one_line(proc, words)
+    assert not (tmp_path / "o").exists()
