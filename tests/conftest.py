@@ -24,9 +24,30 @@ def pytest_configure(config):
     )
 
 
+def _child_outcome(junit_xml: Path) -> tuple[str, str]:
+    """(outcome, message) of the one test a child pytest ran: passed, failed, skipped or xfailed."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        cases = list(ET.parse(junit_xml).getroot().iter("testcase"))
+    except (OSError, ET.ParseError):
+        return "failed", "the child pytest wrote no report"
+    if len(cases) != 1:
+        return "failed", f"the child pytest ran {len(cases)} tests instead of one"
+    for tag in ("failure", "error", "skipped"):
+        el = cases[0].find(tag)
+        if el is not None:
+            message = el.get("message", "")
+            if tag == "skipped":
+                return ("xfailed" if el.get("type") == "pytest.xfail" else "skipped"), message
+            return "failed", message
+    return "passed", ""
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_pyfunc_call(pyfuncitem):
-    """Tests marked own_process run again, alone, in a child pytest; the parent reports its outcome.
+    """Tests marked own_process run again, alone, in a child pytest; the parent reports its outcome (passed,
+    failed, skipped with the child's reason, or xfailed), read from the child's JUnit XML report.
 
     libsumo keeps global state per process, and a second simulation in the same process can crash
     natively; a child process per test keeps one test's simulator from taking the whole session down.
@@ -34,15 +55,22 @@ def pytest_pyfunc_call(pyfuncitem):
     if pyfuncitem.get_closest_marker("own_process") is None or os.environ.get("COSIM_TEST_CHILD"):
         return None
     import subprocess
+    import tempfile
 
     env = {**os.environ, "COSIM_TEST_CHILD": "1"}
-    proc = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--no-header", pyfuncitem.nodeid],
-        cwd=pyfuncitem.config.rootpath, env=env, capture_output=True, text=True,
-    )  # fmt: skip
-    if proc.returncode == 5:
-        pytest.skip("skipped in its own process")
-    if proc.returncode != 0:
-        pytest.fail(f"failed in its own process (exit {proc.returncode}):\n{proc.stdout[-6000:]}{proc.stderr[-2000:]}",
-                    pytrace=False)  # fmt: skip
+    with tempfile.TemporaryDirectory() as tmp:
+        report = Path(tmp) / "child.xml"
+        proc = subprocess.run(
+            [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--no-header", "--junitxml",
+             str(report), pyfuncitem.nodeid],
+            cwd=pyfuncitem.config.rootpath, env=env, capture_output=True, text=True,
+        )  # fmt: skip
+        outcome, message = _child_outcome(report)
+    if outcome == "skipped":
+        pytest.skip(f"in its own process: {message}")
+    if outcome == "xfailed":
+        pytest.xfail(f"in its own process: {message}")
+    if outcome != "passed" or proc.returncode != 0:
+        pytest.fail(f"failed in its own process (exit {proc.returncode}): {message}\n"
+                    f"{proc.stdout[-6000:]}{proc.stderr[-2000:]}", pytrace=False)  # fmt: skip
     return True
