@@ -1,12 +1,12 @@
 """Foxglove's official message schemas, in the JSON-schema form Foxglove uses for JSON-encoded channels.
 
-cosim writes ``/map`` and ``/scene`` as JSON ``foxglove.SceneUpdate`` messages. Their channel schema is not
-written by hand: it is generated from the official schema definitions in Foxglove's
+cosim writes ``/map`` and ``/scene`` as JSON ``foxglove.SceneUpdate`` messages and ``/tf`` (the ego's frame)
+as ``foxglove.FrameTransform``. Their channel schemas are not written by hand: it is generated from the official schema definitions in Foxglove's
 ``foxglove-schemas-protobuf`` package (a dev dependency) by :func:`from_protobuf`, with the rules of
 Foxglove's own JSON-schema generator (time as ``{sec, nsec}``, enums as named constants, every field
-required), and stored next to this module (``foxglove.SceneUpdate.json``) so that a run needs neither that
+required), and stored next to this module (``foxglove.<Type>.json``) so that a run needs neither that
 package nor protobuf. ``tests/unit/test_log_schemas.py`` checks the stored file against the installed
-package; after upgrading the package, regenerate it with ``python -m cosim.log.foxglove_schemas``.
+package; after upgrading the package (or adding a type to ``NAMES``), regenerate with ``python cosim/log/foxglove_schemas.py``.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from functools import cache
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-NAMES = ("foxglove.SceneUpdate",)  # the Foxglove types cosim logs
+NAMES = ("foxglove.SceneUpdate", "foxglove.FrameTransform")  # the Foxglove types cosim logs
 
 
 def stored_path(name: str) -> Path:

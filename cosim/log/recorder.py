@@ -55,6 +55,10 @@ class Recorder:
             if "/ego/state" not in self._channels:
                 self._channel("/ego/state")
             log.write("/ego/state", t, msg)
+            if self.cfg.scene_every_steps:  # the ego's frame for Foxglove's 3D panel (follow "ego")
+                if "/tf" not in self._channels:
+                    self._channel("/tf")
+                log.write("/tf", t, _ego_frame(t, w, ego))
         every = self.cfg.traffic_every_steps
         if every and step % every == 0:  # built and encoded by the writer, from copies of the columns
             if "/traffic/vehicles" not in self._channels:
@@ -94,6 +98,20 @@ class Recorder:
                 idx = idx[d <= self.cfg.scene_radius_m]
             log.write_deferred("/scene", t, _scene, t, [w.ids[i] for i in idx.tolist()], cx[idx], cy[idx],
                                w.heading_deg[idx], w.length_m[idx], w.width_m[idx], w.is_ego[idx])  # fmt: skip
+
+
+def _ego_frame(t: float, w, ego: int) -> dict:
+    """``foxglove.FrameTransform``: frame "ego" (footprint centre, x forward) in "map"."""
+    sec = int(t)
+    yaw = math.radians(90.0 - float(w.heading_deg[ego]))
+    half = 0.5 * float(w.length_m[ego])
+    x = float(w.x_m[ego]) - math.cos(yaw) * half
+    y = float(w.y_m[ego]) - math.sin(yaw) * half
+    return {
+        "timestamp": {"sec": sec, "nsec": int(round((t - sec) * 1e9))}, "parent_frame_id": "map",
+        "child_frame_id": "ego", "translation": {"x": round(x, 3), "y": round(y, 3), "z": 0.0},
+        "rotation": {"x": 0.0, "y": 0.0, "z": round(math.sin(yaw / 2), 6), "w": round(math.cos(yaw / 2), 6)},
+    }  # fmt: skip
 
 
 def _traffic(t, step, ids, slots, x, y, heading, speed, accel, edges, lane_index, signals) -> dict:

@@ -5,7 +5,8 @@ vehicles is one message; ``cosim.log.read`` explodes them back into rows. Every 
 field the run writes (``additionalProperties: false``), and a field that can be null says so (JSON has no
 NaN/inf: the writer stores them as null). Coded values are enums with names (``oneOf`` of ``const`` +
 ``title``, the form Foxglove's own schemas use), e.g. ``/vanet/rx``'s ``outcome``. ``/map`` and ``/scene``
-use Foxglove's official ``foxglove.SceneUpdate`` schema (``cosim.log.foxglove_schemas``).
+use Foxglove's official ``foxglove.SceneUpdate`` schema, ``/tf`` ``foxglove.FrameTransform``
+(``cosim.log.foxglove_schemas``).
 
 tests/integration/test_log_schemas_run.py validates every message of a default run against these.
 """
@@ -148,6 +149,7 @@ ADAS_EVENTS = _obj(
 )  # fmt: skip
 
 SCENE_UPDATE = foxglove_schemas.stored("foxglove.SceneUpdate")
+FRAME_TRANSFORM = foxglove_schemas.stored("foxglove.FrameTransform")
 
 TOPIC_SCHEMAS: dict[str, dict] = {
     "/ego/state": EGO_STATE,
@@ -162,8 +164,9 @@ TOPIC_SCHEMAS: dict[str, dict] = {
     "/adas/events": ADAS_EVENTS,
     "/map": SCENE_UPDATE,  # the static map, once at t = 0
     "/scene": SCENE_UPDATE,  # the vehicles, every log.scene_every_steps
+    "/tf": FRAME_TRANSFORM,  # the ego's frame "ego" in "map", every step (a 3D panel can follow it)
 }
-FOXGLOVE_TOPICS = ("/map", "/scene")
+FOXGLOVE_TOPICS = ("/map", "/scene", "/tf")
 
 # Catch-all for a topic nobody declared yet (cosim.log.writer falls back to it). Every topic a run writes
 # should be in TOPIC_SCHEMAS: the schema test fails on a topic that uses this.

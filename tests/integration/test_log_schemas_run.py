@@ -20,7 +20,7 @@ from cosim.log import foxglove_schemas, schemas  # noqa: E402
 from tests.testpaths import ROOT as REPO  # noqa: E402
 
 DURATION_S = 30  # long enough for the ego, system A/B and receptions at the ego on Krems (seed 1)
-EXPECTED = {"/map", "/scene", "/ego/state", "/traffic/vehicles", "/traffic/lights", "/vanet/tx", "/vanet/rx",
+EXPECTED = {"/map", "/scene", "/tf", "/ego/state", "/traffic/vehicles", "/traffic/lights", "/vanet/tx", "/vanet/rx",
             "/vanet/load", "/vanet/step", "/adas/state"}  # fmt: skip
 
 
@@ -64,16 +64,68 @@ def test_every_message_validates_against_its_declared_schema(default_run):
 
 
 def test_foxglove_topics_validate_against_the_official_schemas(default_run):
-    official = foxglove_schemas.from_protobuf("foxglove.SceneUpdate")
-    validator = jsonschema.Draft202012Validator(official)
+    official = {name: jsonschema.Draft202012Validator(foxglove_schemas.from_protobuf(name))
+                for name in foxglove_schemas.NAMES}  # fmt: skip
     seen = Counter()
-    for _, channel, msg in _messages(default_run):
+    for schema, channel, msg in _messages(default_run):
         if channel.topic in schemas.FOXGLOVE_TOPICS:
-            errors = list(validator.iter_errors(msg))
+            errors = list(official[schema.name].iter_errors(msg))
             assert not errors, f"{channel.topic}: {errors[0].message} at {list(errors[0].path)}"
             seen[channel.topic] += 1
-    assert seen["/map"] == 1 and seen["/scene"] >= DURATION_S - 1
+    assert seen["/map"] == 1 and seen["/scene"] >= DURATION_S - 1 and seen["/tf"] > 0
     # the static map has every part the issue asks for
     first = next(m for _, c, m in _messages(default_run) if c.topic == "/map")
     ids = {e["id"] for e in first["entities"]}
     assert {"roads", "lane_markings", "buildings", "signs", "traffic_lights"} <= ids
+
+
+def _layout_topics(node, out: set[str]) -> None:
+    """Topics a Foxglove layout names: 3D topic keys and the topic part of every message path."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            if k == "topics" and isinstance(v, dict):
+                out.update(v)
+            elif k == "value" and isinstance(v, str) and v.startswith("/"):
+                out.add(v.split(".")[0])
+            else:
+                _layout_topics(v, out)
+    elif isinstance(node, list):
+        for v in node:
+            _layout_topics(v, out)
+
+
+def _layout_panels(node, out: list[str]) -> None:
+    if isinstance(node, str):
+        out.append(node)
+    elif isinstance(node, dict):
+        for k in ("first", "second"):
+            _layout_panels(node.get(k), out)
+
+
+def test_shipped_foxglove_layout_names_only_topics_a_default_run_writes(default_run):
+    layout = json.loads((REPO / "docs/foxglove/cosim.json").read_text())
+    written = {c.topic for _, c, _ in _messages(default_run)}
+    named: set[str] = set()
+    _layout_topics(layout["configById"], named)
+    assert {"/map", "/scene", "/adas/state", "/vanet/load", "/vanet/rx"} <= named
+    assert named <= written, (
+        f"the layout names topics a default run does not write: {sorted(named - written)}"
+    )
+    panels: list[str] = []
+    _layout_panels(layout["layout"], panels)
+    assert sorted(panels) == sorted(layout["configById"]), "every configured panel is placed, and only those"
+    known = {
+        "3D",
+        "Plot",
+        "StateTransitions",
+        "RawMessages",
+        "Table",
+        "Indicator",
+    }  # Foxglove's built-in panels
+    assert {p.split("!")[0] for p in panels} <= known
+    # every plotted field exists in the topic's schema
+    for panel in layout["configById"].values():
+        for path in panel.get("paths", []):
+            topic, _, field = path["value"].partition(".")
+            name = field.split("[")[0]
+            assert name in schemas.TOPIC_SCHEMAS[topic]["properties"], path["value"]

@@ -20,7 +20,7 @@ def test_stored_foxglove_schema_is_the_official_one():
     pytest.importorskip("foxglove_schemas_protobuf")
     for name in foxglove_schemas.NAMES:
         assert foxglove_schemas.stored(name) == foxglove_schemas.from_protobuf(name), (
-            f"{name}: regenerate with `python -m cosim.log.foxglove_schemas`"
+            f"{name}: regenerate with `python cosim/log/foxglove_schemas.py`"
         )
 
 
