@@ -17,20 +17,28 @@ import numpy as np
 
 import cosim
 from cosim.config import to_dict
+from cosim.health import DriveHealth
 from cosim.log import McapLog
 from cosim.runconfig import RunConfig
 from cosim.scenario import Scenario, build_scenario
-from cosim.sumo_bridge.bridge import LEAD_ID, SumoBridge, SumoEvent
+from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoBridge, SumoEvent
 from cosim.sumo_bridge.tools import sumo_version
 from cosim.world import World
 
 PHASES = ("sumo", "vanet", "adas", "driver", "ego", "writeback", "log")
+EGO_START_M = 2.0  # the ego's rear starts this far from the start of its route [m]
+LEAD_START_GAP_M = 20.0  # the lead starts this far ahead of the ego's front bumper [m]
+LEAD_LENGTH_M = 5.0  # SUMO's default car, which the lead's vType copies [m]
+START_CLEAR_M = 10.0  # vehicles this close to the ego's and the lead's start are taken out [m] ...
+START_GUARD_S = 10.0  # ... during this long after they are placed [s]
 
 
 class Progress:
     """A tqdm bar on stderr: simulated time of the total, vehicles and real-time factor."""
 
     def __init__(self, total_s: float, enabled: bool):
+        from tqdm import tqdm
+
         self.total_s = total_s
         self.enabled = enabled and total_s > 0
         self.t0 = time.perf_counter()
@@ -39,8 +47,6 @@ class Progress:
         if self.enabled:
             self._bar = tqdm(total=round(total_s, 3), unit="sim s", file=sys.stderr, dynamic_ncols=True,
                              bar_format="{l_bar}{bar}| {n:.1f}/{total:.0f} s [{elapsed}<{remaining}{postfix}]")  # fmt: skip
-        from tqdm import tqdm
-
 
     def update(self, t_s: float, vehicles: int, force: bool = False) -> None:
         now = time.perf_counter()
@@ -88,8 +94,11 @@ class Simulation:
         self.vanet = None  # the VanetPhase when the radio is on
         self.adas = None  # the AdasPhase when there is an ego
         self.lead = None  # the LeadVehicle of the following task
+        self.route = None  # the EgoRoute: the ego's (and the lead's) route, extended as they drive
         self.traffic = None  # TrafficAroundEgo when the scenario's traffic is generated around the ego
         self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
+        self.health: DriveHealth | None = None
+        self._start_guard_until: float | None = None
         self.closed = False
         try:
             self.bridge = SumoBridge(self.scenario.sumocfg, seed=config.seed, step_s=self.step_s, gui=gui,
@@ -118,6 +127,7 @@ class Simulation:
                     from cosim.phases.traffic import TrafficAroundEgo
 
                     self.traffic = TrafficAroundEgo(self, config.scenario.demand)
+            self.health = DriveHealth(self)  # after the ego's phases: it reads what they decided
             from cosim.log.recorder import attach_recorder
 
             if self.mcap is not None:
@@ -145,16 +155,55 @@ class Simulation:
         })  # fmt: skip
 
     def _setup_ego(self) -> None:
+        """The ego (and the lead ahead of it) are placed on the route at the first step, not queued behind
+        SUMO's pending insertions; with ``depart_s`` > 0 they are placed at that time (``_place_ego``)."""
         ego = self.config.ego
         route = list(ego.route) or list(self.scenario.report["demand"]["ego_route"])
         self.ego_route = route
+        if ego.physics == "mujoco":
+            from cosim.phases.route import EgoRoute
+
+            self.route = EgoRoute(self)
+        if ego.depart_s > 0:
+            self.add_hook("sumo", self._place_ego_when_due)
+        else:
+            self._place_ego()
+
+    def _place_ego(self) -> None:
+        self.add_hook("sumo", self._clear_start)
+        ego = self.config.ego
+        front = ego.car.length_m + EGO_START_M
         if ego.lead_vehicle:
-            self.bridge.add_vehicle(
-                LEAD_ID, route, depart=ego.depart_s, type_id="scv", color=(40, 120, 255, 255)
-            )
-        self.bridge.add_ego(route, depart=ego.depart_s + (3.0 if ego.lead_vehicle else 0.0),
-                            controlled=ego.physics == "mujoco", length_m=ego.car.length_m,
-                            width_m=ego.car.width_m)  # fmt: skip
+            self.bridge.add_lead(self.ego_route, front + LEAD_START_GAP_M + LEAD_LENGTH_M)
+        self.bridge.add_ego(self.ego_route, controlled=ego.physics == "mujoco", length_m=ego.car.length_m,
+                            width_m=ego.car.width_m, front_m=front)  # fmt: skip
+
+    def _clear_start(self, sim) -> None:
+        """For the first START_GUARD_S after the ego (and the lead) are placed: take out the vehicles SUMO
+        inserts into their span of road (an initial vehicle placed on top of the ego, or between the two)
+        and those still waiting to be inserted on its edges, so the following task starts as planned."""
+        w = self.world
+        placed = [w.slot_of[v] for v in (EGO_ID, LEAD_ID) if v in w.slot_of]
+        if len(placed) < (2 if self.config.ego.lead_vehicle else 1):
+            return
+        if self._start_guard_until is None:
+            self._start_guard_until = w.t_s + START_GUARD_S
+        if w.t_s > self._start_guard_until:
+            self.hooks["sumo"].remove(self._clear_start)
+            return
+        edge_codes = w.edge_code[placed]
+        edges = [w.edge_names[c] for c in edge_codes.tolist() if c >= 0]
+        xs, ys = w.x_m[placed], w.y_m[placed]
+        cx, cy = float(xs.mean()), float(ys.mean())
+        reach = 0.5 * float(np.hypot(xs.max() - xs.min(), ys.max() - ys.min())) + START_CLEAR_M
+        near = w.valid & (np.hypot(w.x_m - cx, w.y_m - cy) <= reach) & np.isin(w.edge_code, edge_codes)
+        in_span = [w.ids[s] for s in np.flatnonzero(near).tolist() if w.ids[s] not in (EGO_ID, LEAD_ID)]
+        for vid in in_span + self.bridge.pending_on(edges):
+            self.bridge.remove_vehicle(vid)
+
+    def _place_ego_when_due(self, sim) -> None:
+        if self.bridge.ego_id is None and self.world.t_s + self.step_s >= self.config.ego.depart_s - 1e-9:
+            self._place_ego()
 
     # -- the loop --------------------------------------------------------------------------------------------
     def add_hook(self, phase: str, fn: Callable[[Simulation], None]) -> None:
@@ -200,7 +249,7 @@ class Simulation:
         wall = time.perf_counter() - t0
         return {**self.stats, "simulated_s": round(self.world.t_s, 3), "wall_s": round(wall, 2),
                 "real_time_factor": round(self.world.t_s / wall, 2) if wall > 0 else None,
-                "interrupted": interrupted}  # fmt: skip
+                "interrupted": interrupted, "health": self.health.report()}  # fmt: skip
 
     def close(self) -> None:
         if self.closed:
@@ -208,6 +257,8 @@ class Simulation:
         self.closed = True
         try:
             if self.mcap is not None:
+                if self.health is not None and self.stats["steps"]:  # the run's own verdict, last in the log
+                    self.mcap.write("/health", self.world.t_s, {"t_s": self.world.t_s, **self.health.report()})
                 self.mcap.close()
         finally:
             if self.bridge is not None:

@@ -17,12 +17,14 @@ from typing import Literal
 
 import numpy as np
 
+from cosim.driver.gap_acceptance import MOVEMENTS
+
 TlsState = Literal["r", "y", "g"]
-SignKind = Literal["stop", "give_way"]
+SignKind = Literal["stop", "give_way", "yield"]  # yield: a green without priority at a light
 WarningLevel = Literal["none", "advisory", "warning"]
 
 _TLS_STATES = ("r", "y", "g")
-_SIGN_KINDS = ("stop", "give_way")
+_SIGN_KINDS = ("stop", "give_way", "yield")
 _LEVELS = ("none", "advisory", "warning")
 
 
@@ -138,7 +140,11 @@ class Percept:
     sign_kind: SignKind | None = None  # next stop / give-way sign on the route; None = none ahead
     sign_dist_m: float = math.inf  # [m] to the sign's stop / yield line
     sign_id: str | None = None  # optional id (e.g. the junction id): tells consecutive signs apart
-    junction_conflict: bool = False  # a conflicting vehicle approaches that sign's junction (paper: 200 m)
+    junction_conflict: bool = False  # the junction of that sign is blocked: wait whatever the gap
+    # [s] until the first vehicle the ego must let pass reaches the conflict area (inf: none near); the driver
+    # judges it against its critical gap for the movement (cosim.driver.gap_acceptance)
+    junction_gap_s: float = math.inf
+    junction_movement: str = "minor_through"  # HCM movement through that junction (gap_acceptance.MOVEMENTS)
     route_end_dist_m: float = math.inf  # [m] to the end of the predefined route (the driver stops there)
     sys_a_lit: bool = False  # system A: the leader's rear "keep distance" display is lit AND legible
     sys_b_gap_s: float | None = None  # system B: time gap shown in the car [s]; None = "no data" / off
@@ -166,6 +172,7 @@ class Percept:
             "tls_dist_m",
             "sign_dist_m",
             "route_end_dist_m",
+            "junction_gap_s",
         ):
             if math.isnan(getattr(self, name)):
                 raise ValueError(f"Percept.{name} must not be NaN")
@@ -185,6 +192,8 @@ class Percept:
                 )
             if not math.isfinite(self.sign_dist_m):
                 raise ValueError("Percept.sign_dist_m must be finite when sign_kind is set")
+        if self.junction_movement not in MOVEMENTS:
+            raise ValueError(f"Percept.junction_movement must be one of {MOVEMENTS}, got {self.junction_movement!r}")
         if self.sys_b_level not in _LEVELS:
             raise ValueError(f"Percept.sys_b_level must be one of {_LEVELS}, got {self.sys_b_level!r}")
         if self.sys_b_gap_s is not None and not (self.sys_b_gap_s >= 0.0):

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.driver.base import Controls, Driver, Percept
+from cosim.driver.gap_acceptance import critical_gap_s
 from cosim.driver.profiles import DriverProfile
 
 _G = 9.81  # [m/s^2]
@@ -55,6 +56,8 @@ _CURVE_WINDOW_M = 8.0  # [m] arc length over which curvature is measured (robust
 _NEAR_LINE_M = 1.5  # [m] a stop counts as "at the line" when the bumper is this close to the stop point
 _GIVE_WAY_COMMIT_M = 2.0  # [m] this close to a clear give-way line the driver commits to going
 _STOPPED_MPS = 0.1  # [m/s] "full stop" at a stop sign
+_CREEP_MPS = 1.0  # [m/s] slower than this near a yield line counts as waiting there
+_WAIT_ZONE_M = 15.0  # [m] ... within this distance of the line (a queue in front of it included)
 _LEADER_ACCEL_SMOOTH_S = 0.3  # [s] smoothing of the perceived leader acceleration
 _MIN_TIME_GAP_S = 0.3  # [s] the desired time gap never drops below this
 _B_MAX_ADD_S = 3.0  # [s]
@@ -144,6 +147,7 @@ class DriverDebug:
     leader_speed_est_mps: float  # [m/s] the leader speed estimate; nan without leader
     tls_decision: str  # '' | 'stop' | 'go' for the next light
     sign_phase: str  # '' | 'approach' | 'wait' | 'go' for the next sign
+    yielding: bool  # waiting for a gap in the priority traffic at that sign (or for a blocked junction)
     lateral_target_m: float  # [m] current wandering lateral target offset, left positive
     lookahead_m: float  # [m] pure-pursuit look-ahead distance
 
@@ -153,7 +157,7 @@ class _Seen:
 
     __slots__ = (
         "t", "odo", "leader", "leader_id", "gap", "vl", "al", "limit", "next_limit", "next_limit_d", "tls", "tls_d", "tls_id",
-        "sign", "sign_d", "sign_id", "conflict", "route_end_d", "a_lit", "b_gap", "b_level",
+        "sign", "sign_d", "sign_id", "conflict", "jgap", "movement", "route_end_d", "a_lit", "b_gap", "b_level",
     )  # fmt: skip
 
 
@@ -248,6 +252,8 @@ class ScriptedDriver(Driver):
         self._sign_prev_d = math.inf
         self._sign_phase = ""
         self._sign_stopped_s = 0.0
+        self._sign_waited_s = 0.0  # waiting at the current yield line: the driver grows impatient
+        self._yielding = False  # the gap at the current yield line is too short (or the junction blocked)
         self.debug: DriverDebug | None = None
 
     # ------------------------------------------------------------------------------------------------------
@@ -297,6 +303,7 @@ class ScriptedDriver(Driver):
             leader_speed_est_mps=vl_est,
             tls_decision=self._tls_decision,
             sign_phase=self._sign_phase,
+            yielding=self._yielding,
             lateral_target_m=float(self._w[3] * prof.lateral_wander_std_m),
             lookahead_m=lookahead,
         )
@@ -339,6 +346,7 @@ class ScriptedDriver(Driver):
         s.tls, s.tls_d, s.tls_id = p.tls_state, p.tls_dist_m, p.tls_id
         s.sign, s.sign_d, s.sign_id = p.sign_kind, p.sign_dist_m, p.sign_id
         s.conflict, s.route_end_d = p.junction_conflict, p.route_end_dist_m
+        s.jgap, s.movement = p.junction_gap_s, p.junction_movement
         s.a_lit, s.b_gap, s.b_level = p.sys_a_lit, p.sys_b_gap_s, p.sys_b_level
         return s
 
@@ -429,13 +437,13 @@ class ScriptedDriver(Driver):
         if self._traffic_light(d, v, tls_d) == "stop":
             consider(_stop_accel(v, tls_d - margin, b), "tls")
         sign_d = d.sign_d - travelled
-        phase = self._sign(d, v, sign_d, dt_s)
+        phase = self._sign(d, v, sign_d, age, dt_s)
         if d.sign == "stop" and phase in ("approach", "wait"):
             consider(_stop_accel(v, sign_d - margin, b), "stop")
-        elif d.sign == "give_way" and phase == "approach":
-            if d.conflict:
+        elif d.sign in ("give_way", "yield") and phase == "approach":
+            if self._yielding:
                 consider(_stop_accel(v, sign_d - margin, b), "give_way")
-            else:
+            elif d.sign == "give_way":
                 # at give-way speed by the commit point, where the driver decides to go
                 consider(
                     _cap_accel(v, prof.give_way_speed_mps, sign_d - margin - _GIVE_WAY_COMMIT_M, b),
@@ -461,29 +469,43 @@ class ScriptedDriver(Driver):
             self._tls_decision = "stop" if needed <= limit or v < _STOPPED_MPS else "go"
         return self._tls_decision
 
-    def _sign(self, d: _Seen, v: float, dist_m: float, dt_s: float) -> str:
-        """Stop sign: approach -> full stop for stop_dwell_s at the line -> wait while conflict -> go.
-        Give-way: approach (slow, stop while conflict) -> go once committed near a clear line."""
+    def _sign(self, d: _Seen, v: float, dist_m: float, age: float, dt_s: float) -> str:
+        """Stop sign: approach -> full stop for stop_dwell_s at the line -> wait for a gap -> go.
+        Give-way (and a green without priority): approach (slow, stop while the gap is too short) -> go once
+        committed near the line with an acceptable gap.
+
+        The gap is the time until the first priority vehicle reaches the conflict, as perceived one reaction
+        time ago and aged since; it is acceptable from the critical gap of the movement on, which shrinks
+        while the driver waits (cosim.driver.gap_acceptance)."""
         if d.sign is None:
             self._sign_key, self._sign_prev_d, self._sign_phase = None, math.inf, ""
+            self._yielding = False
             return ""
+        prof = self.profile
         key = (d.sign, d.sign_id)
         if key != self._sign_key or dist_m > self._sign_prev_d + 5.0:  # another sign
             self._sign_key, self._sign_phase, self._sign_stopped_s = key, "approach", 0.0
+            self._sign_waited_s = 0.0
         self._sign_prev_d = dist_m
-        to_stop = dist_m - self.profile.stop_line_margin_m
+        to_stop = dist_m - prof.stop_line_margin_m
+        if v < _CREEP_MPS and to_stop < _WAIT_ZONE_M and self._sign_phase != "go":
+            self._sign_waited_s += dt_s
+        needed = critical_gap_s(d.movement, self._sign_waited_s, prof.critical_gap_factor, prof.time_to_impatience_s)
+        self._yielding = d.conflict or d.jgap - age < needed
         if d.sign == "stop":
             if self._sign_phase == "approach":
                 if v < _STOPPED_MPS and to_stop < _NEAR_LINE_M:
                     self._sign_stopped_s += dt_s
-                    if self._sign_stopped_s >= self.profile.stop_dwell_s - 1e-9:
+                    if self._sign_stopped_s >= prof.stop_dwell_s - 1e-9:
                         self._sign_phase = "wait"
                 else:
                     self._sign_stopped_s = 0.0
-            if self._sign_phase == "wait" and not d.conflict:
+            if self._sign_phase == "wait" and not self._yielding:
                 self._sign_phase = "go"
-        elif self._sign_phase == "approach" and not d.conflict and to_stop < _GIVE_WAY_COMMIT_M:
+        elif self._sign_phase == "approach" and not self._yielding and to_stop < _GIVE_WAY_COMMIT_M:
             self._sign_phase = "go"
+        if self._sign_phase == "go":
+            self._yielding = False
         return self._sign_phase
 
     def _curve_accel(self, p: Percept, v: float, v0: float, b: float) -> float:

@@ -8,227 +8,38 @@ the ego (leader, next light), and asks the driver; ``ego`` integrates the MuJoCo
 from __future__ import annotations
 
 import bisect
-import itertools
 import math
-from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
 from cosim import frames
 from cosim.driver import Controls, Percept, make_driver
-from cosim.sumo_bridge.bridge import EGO_ID
+from cosim.driver.gap_acceptance import arrival_time_s, movement_of
+from cosim.driver.route import RoutePath
+from cosim.sumo_bridge.bridge import EGO_ID, SumoEvent
 
 PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
 TLS_NEAR_M = 150.0  # a light nearer than this is looked up every step, farther ones once a second
 TLS_REFRESH_S = 1.0
-CONFLICT_RADIUS_M = 200.0  # paper IV.B: "approaching vehicles within 200 m"
-LANE_CHANGE_LENGTH_M = 30.0
-PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
+YIELD_LOOK_M = 80.0  # the gap at a junction where the ego must yield is judged from this close on [m]
+FOE_RADIUS_M = 200.0  # priority vehicles farther from the conflict than this do not count (paper IV.B)
 # SUMO is given the ego's route this far ahead, renewed at half of it: enough for its next light (read
 # within 300 m) and right of way. It matches every pose against each edge of the route it holds (the ones
 # passed too, which it keeps), so the whole route ahead would cost up to 0.3 ms a step.
 SUMO_ROUTE_AHEAD_M = 800.0
 ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
-BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 )
 
 
-@dataclass(frozen=True)
-class StopLine:
-    s_m: float  # arc position of the stop line on the route path [m]
-    junction: str
-    state: str  # SUMO link state of the route's connection ('M','m','s','w','=', ...)
-    xy: tuple[float, float]  # junction centre
-
-
-class RoutePath:
-    """The route as one lane centre-line polyline with arc lengths, its stop lines and speed limits."""
-
-    def __init__(self, net, route: list[str]):
-        line = _Polyline()
-        self.stop_lines: list[StopLine] = []
-        limits: list[tuple[float, float]] = []  # (s where it starts, speed)
-        entry_lane = None
-        for i, eid in enumerate(route):
-            edge = net.getEdge(eid)
-            nxt = net.getEdge(route[i + 1]) if i + 1 < len(route) else None
-            conns = [c for c in edge.getOutgoing().get(nxt, [])] if nxt else []
-            conns = sorted(conns, key=lambda c: c.getFromLane().getIndex())
-            lane = conns[0].getFromLane() if conns else (entry_lane or edge.getLane(0))
-            shape = [tuple(p[:2]) for p in lane.getShape()]
-            if (
-                entry_lane is not None and entry_lane is not lane and line.pts
-            ):  # change lanes early on the edge
-                shape = _trim_start(shape, min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength()))
-            s0 = line.extend(shape)
-            limits.append((s0, lane.getSpeed()))
-            if conns:
-                c = conns[0]
-                node = edge.getToNode()
-                self.stop_lines.append(
-                    StopLine(line.length, node.getID(), c.getState(), tuple(node.getCoord()[:2]))
-                )
-                via = c.getViaLaneID()
-                if via:
-                    line.extend([tuple(p[:2]) for p in net.getLane(via).getShape()])
-                entry_lane = c.getToLane()
-        self.stop_s = [stop.s_m for stop in self.stop_lines]  # arc positions, non-decreasing
-        xy = np.asarray(line.pts, dtype=np.float64)
-        keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
-        self.xy = xy[keep]
-        self.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.xy, axis=0).T))])
-        self.length_m = float(self.s[-1])
-        self.limit_s = np.asarray([a for a, _ in limits])
-        self.limit_v = np.asarray([b for _, b in limits])
-        self._last_s = 0.0  # arc position of the last projection
-
-    def project(self, x: float, y: float) -> tuple[float, float]:
-        """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit.
-
-        The search is bounded by arc length around the last hit: a route that comes back past the same
-        place later must not capture the projection (the driver would steer for the later pass)."""
-        lo = max(0, int(self.s.searchsorted(self._last_s - PROJECT_BEHIND_M)) - 1)
-        hi = min(len(self.xy) - 1, max(lo + 1, int(self.s.searchsorted(self._last_s + PROJECT_AHEAD_M))))
-        s, offset, at_window_end = self._nearest(lo, hi, x, y)
-        if at_window_end and abs(offset) > 20.0 and hi - lo < len(self.xy) - 1:  # lost: search everywhere
-            s, offset, _ = self._nearest(0, len(self.xy) - 1, x, y)
-        self._last_s = s
-        return s, offset
-
-    @cached_property
-    def _segments(self) -> tuple[np.ndarray, ...]:
-        """Per segment (point i to i + 1): start x, start y, direction x, direction y, squared length (at
-        least 1e-12) and length; constants of the route, computed once for every projection."""
-        a, d = self.xy[:-1], np.diff(self.xy, axis=0)
-        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
-        return a[:, 0].copy(), a[:, 1].copy(), d[:, 0].copy(), d[:, 1].copy(), seg2, np.sqrt(seg2)
-
-    def _nearest(self, lo: int, hi: int, x: float, y: float) -> tuple[float, float, bool]:
-        """Projection onto the segments from point ``lo`` to point ``hi``; also whether it fell on the
-        first or last of them."""
-        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
-        t = np.minimum(np.maximum(((x - ax) * dx + (y - ay) * dy) / seg2, 0.0), 1.0)
-        dist2 = (ax + t * dx - x) ** 2 + (ay + t * dy - y) ** 2
-        k = int(dist2.argmin())
-        cross = dx[k] * (y - ay[k]) - dy[k] * (x - ax[k])
-        s = float(self.s[lo + k] + t[k] * seg_len[k])
-        return s, math.copysign(math.sqrt(dist2[k]), cross), k in (0, len(dist2) - 1)
-
-    def edge_index(self, s: float) -> int:
-        """Index in the route of the edge at arc position ``s`` (the edge just left while in a junction)."""
-        return max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)
-
-    def window(self, s_from: float, s_to: float) -> np.ndarray:
-        """The path from arc position ``s_from`` to ``s_to``: both ends interpolated, the points between."""
-        s_from, s_to = max(0.0, s_from), min(self.length_m, s_to)
-        first = int(self.s.searchsorted(s_from, side="right"))  # the points strictly inside
-        inner = self.xy[first : max(first, int(self.s.searchsorted(s_to, side="left")))]
-        out = np.empty((len(inner) + 2, 2))
-        out[1:-1] = inner
-        out[0, 0], out[-1, 0] = np.interp([s_from, s_to], self.s, self.xy[:, 0]).tolist()
-        out[0, 1], out[-1, 1] = np.interp([s_from, s_to], self.s, self.xy[:, 1]).tolist()
-        return out
-
-    @cached_property
-    def _boxes(self) -> tuple[np.ndarray, ...]:
-        """x min, y min, x max, y max of each run of BOX_SEGMENTS segments (run k: segments from k *
-        BOX_SEGMENTS on), for a first cheap test of which points can be near the path."""
-        x, y = self.xy[:, 0], self.xy[:, 1]
-        starts = np.arange(0, len(self.xy) - 1, BOX_SEGMENTS)
-        return (
-            np.minimum.reduceat(np.minimum(x[:-1], x[1:]), starts),
-            np.minimum.reduceat(np.minimum(y[:-1], y[1:]), starts),
-            np.maximum.reduceat(np.maximum(x[:-1], x[1:]), starts),
-            np.maximum.reduceat(np.maximum(y[:-1], y[1:]), starts),
-        )
-
-    def vehicles_on_path(self, xs: np.ndarray, ys: np.ndarray, s_from: float, s_to: float,
-                         half_width_m: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Arc positions of points lying on the path between ``s_from`` and ``s_to`` (within
-        ``half_width_m`` of its centre line); returns (index into xs, arc position) of those points."""
-        lo = max(0, int(self.s.searchsorted(s_from)) - 1)
-        hi = min(len(self.s) - 1, int(self.s.searchsorted(s_to)) + 1)
-        if hi <= lo or len(xs) == 0:
-            return np.zeros(0, dtype=int), np.zeros(0)
-        # Only points inside the bounding box of some run of segments (1 m spare for rounding) can lie on
-        # the path: the others are dropped before the (points x segments) search, which treats every
-        # point on its own.
-        c0, c1 = lo // BOX_SEGMENTS, (hi - 1) // BOX_SEGMENTS + 1
-        pad = half_width_m + 1.0
-        x0, y0, x1, y1 = (b[c0:c1] for b in self._boxes)
-        px, py = xs[:, None], ys[:, None]
-        inside = (px >= x0 - pad) & (px <= x1 + pad) & (py >= y0 - pad) & (py <= y1 + pad)
-        rows = np.flatnonzero(inside.any(axis=1))
-        if rows.size == 0:
-            return rows, np.zeros(0)
-        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
-        px, py = xs[rows, None], ys[rows, None]
-        t = np.minimum(np.maximum(((px - ax) * dx + (py - ay) * dy) / seg2, 0.0), 1.0)
-        dist2 = (ax + t * dx - px) ** 2 + (ay + t * dy - py) ** 2
-        k = dist2.argmin(axis=1)
-        near = np.arange(len(rows))
-        s_at = self.s[lo + k] + t[near, k] * seg_len[k]
-        on = (dist2[near, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
-        return rows[on], s_at[on]
-
-    def speed_limit(self, s: float) -> tuple[float, float | None, float]:
-        """(limit here, next different limit or None, distance to it)."""
-        i = max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)
-        j = self._next_limit_change[i]
-        if j is None:
-            return float(self.limit_v[i]), None, math.inf
-        return float(self.limit_v[i]), float(self.limit_v[j]), float(self.limit_s[j] - s)
-
-    @cached_property
-    def _next_limit_change(self) -> list[int | None]:
-        """For each limit, the index of the next one that differs from it by more than 0.1 m/s (or None)."""
-        v = self.limit_v
-        return [
-            next((j for j in range(i + 1, len(v)) if abs(v[j] - v[i]) > 0.1), None) for i in range(len(v))
-        ]
-
-
-def _length(pts) -> float:
-    return float(sum(math.dist(a, b) for a, b in itertools.pairwise(pts)))
-
-
-class _Polyline:
-    """Points appended shape by shape, with the running length (the route can have thousands)."""
-
-    def __init__(self):
-        self.pts: list[tuple[float, float]] = []
-        self.length = 0.0
-
-    def extend(self, shape: list) -> float:
-        """Append ``shape``; returns the length before it (the limit of a lane starts at its joint)."""
-        s0 = self.length
-        gap = math.dist(self.pts[-1], shape[0]) if self.pts and shape else 0.0
-        self.pts.extend(shape)
-        self.length = s0 + gap + _length(shape)
-        return s0
-
-
-def _trim_start(shape: list, dist: float) -> list:
-    acc = 0.0
-    for i in range(1, len(shape)):
-        seg = math.dist(shape[i - 1], shape[i])
-        if acc + seg >= dist:
-            f = (dist - acc) / seg if seg else 0.0
-            p = (
-                shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]),
-                shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]),
-            )
-            return [p, *shape[i:]]
-        acc += seg
-    return shape[-1:]
-
-
+# SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
+# sign, an unsigned minor road, a roundabout entry), '=' priority to the right (right_before_left)
 _SIGN_OF_STATE = {"s": "stop", "w": "stop", "m": "give_way", "=": "give_way"}
 _TLS = {"g": "g", "G": "g", "y": "y", "Y": "y", "u": "y", "r": "r", "R": "r", "s": "r"}
+# a green without priority ('g': a permissive left turn across oncoming traffic) is a yield line as well
+_TLS_YIELD = "g"
 
 
 class EgoController:
@@ -240,7 +51,7 @@ class EgoController:
         self.sim = sim
         cfg = sim.config.ego
         self.car = EgoCar(cfg.car, timestep_s=sim.config.timing.physics_timestep_s)
-        self.path = RoutePath(sim.net, sim.ego_route)
+        self.path = RoutePath.from_network(sim.net, sim.ego_route)
         p = cfg.car
         self.driver = make_driver(cfg.driver, np.random.default_rng([sim.config.seed, 11, cfg.driver_seed]),
                                   math.radians(p.max_steer_deg), p.wheelbase_m)  # fmt: skip
@@ -248,7 +59,6 @@ class EgoController:
         self.controls = Controls()
         self.started = False
         self.percept: Percept | None = None
-        self._passed_signs: set[int] = set()
         self._last_tls = None
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
@@ -286,6 +96,9 @@ class EgoController:
         cx, cy = st.x_m + self.origin[0], st.y_m + self.origin[1]
         s_c, _ = self.path.project(cx, cy)
         s_front = s_c + 0.5 * self.car.params.length_m
+        self.s_front_m = s_front
+        if sim.route is not None and sim.route.extend_if_short(self.path.length_m - s_front):
+            self._rebuild_path()
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(sim, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
@@ -293,20 +106,7 @@ class EgoController:
         self._check_red_light(sim, tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
-        lines = self.path.stop_lines
-        # the lines more than 1 m behind are skipped (they are sorted by arc position)
-        for i in range(bisect.bisect_left(self.path.stop_s, s_front - 1.0), len(lines)):
-            line = lines[i]
-            if i in self._passed_signs:
-                continue
-            if line.s_m - s_front > 300.0:
-                break
-            kind = _SIGN_OF_STATE.get(line.state)
-            if kind:
-                dist = max(0.0, line.s_m - s_front)
-                kw.update(sign_kind=kind, sign_dist_m=dist, sign_id=line.junction,
-                          junction_conflict=self._conflict(sim, dist))  # fmt: skip
-                break
+        kw.update(self._yield_line(sim, s_front, tls))
         adas = sim.outputs.get("adas_displays", {})
         self.percept = Percept(
             t_s=w.t_s, speed_mps=st.speed_mps, x_m=cx, y_m=cy, yaw_rad=st.yaw_rad, accel_mps2=st.accel_mps2,
@@ -327,7 +127,7 @@ class EgoController:
         route = sim.ego_route
         k = self.path.edge_index(s_front)
         end = self._sumo_route_end
-        held = sim.bridge.ego_edges_left() == (len(route) if end is None else end) - k
+        held = sim.bridge.edges_left(EGO_ID) == (len(route) if end is None else end) - k
         if (
             held
             and end is not None
@@ -364,8 +164,6 @@ class EgoController:
         last = self._last_tls
         self._last_tls = tls
         if last and last[2] < 5.0 and _TLS.get(last[3]) == "r" and (not tls or tls[:2] != last[:2]):
-            from cosim.sumo_bridge.bridge import SumoEvent
-
             sim.events.append(SumoEvent("red_light_violation", EGO_ID, f"{last[0]} link {last[1]}", last[2]))
 
     def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
@@ -391,12 +189,50 @@ class EgoController:
         return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
                 "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
+    def _yield_line(self, sim, s_front: float, tls) -> dict:
+        """The next line where the ego must yield (a stop or give-way sign, a minor road, priority to the
+        right, a roundabout entry; a green without priority at a light) and, near it, the gap in the
+        priority traffic: when the first vehicle the ego must let pass reaches the conflict [s] (paper IV.B:
+        vehicles approaching within 200 m count)."""
+        lines = self.path.stop_lines
+        kw: dict = {}
+        # the lines more than 1 m behind are skipped (they are sorted by arc position)
+        for i in range(bisect.bisect_left(self.path.stop_s, s_front - 1.0), len(lines)):
+            line = lines[i]
+            if line.s_m - s_front > 300.0:
+                break
+            kind = _SIGN_OF_STATE.get(line.state)
+            permissive = False
+            if kind is None and tls and tls[3] == _TLS_YIELD and abs(tls[2] - (line.s_m - s_front)) < 2.0:
+                kind, permissive = "yield", True
+            if kind:
+                dist = max(0.0, line.s_m - s_front)
+                kw.update(sign_kind=kind, sign_dist_m=dist, sign_id=line.junction,
+                          junction_movement=movement_of(line.direction, line.into_roundabout, permissive))  # fmt: skip
+                if dist <= YIELD_LOOK_M:
+                    kw["junction_gap_s"] = self._priority_gap_s(sim, dist)
+                break
+        return kw
+
     @staticmethod
-    def _conflict(sim, sign_dist_m: float) -> bool:
-        """A vehicle the ego must yield to approaches the signed junction from within 200 m (paper IV.B)."""
-        if sign_dist_m > 80.0:  # decided on the approach, not from afar
-            return False
-        return any(d < CONFLICT_RADIUS_M for _, d in sim.bridge.yield_foes(EGO_ID, sign_dist_m + 5.0))
+    def _priority_gap_s(sim, line_dist_m: float) -> float:
+        """Time until the first vehicle the ego must yield to at the next junction reaches the conflict [s]
+        (inf: none within FOE_RADIUS_M)."""
+        w = sim.world
+        gap = math.inf
+        for foe, _, foe_dist in sim.bridge.yield_foes(EGO_ID, line_dist_m + 5.0):
+            slot = w.slot_of.get(foe)
+            if slot is None or foe_dist > FOE_RADIUS_M:
+                continue
+            gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
+        return gap
+
+    def _rebuild_path(self) -> None:
+        """The route was extended: the path again from the whole route, the projection kept."""
+        last_s = self.path._last_s
+        self.path = RoutePath.from_network(self.sim.net, self.sim.ego_route)
+        self.path._last_s = last_s
+        self._tls_cache = None
 
     def integrate(self, sim) -> None:
         if not self.started:
@@ -428,6 +264,8 @@ class EgoController:
             "tls_state": p.tls_state if p else None,
             "sign": p.sign_kind if p else None,
             "sign_dist_m": round(p.sign_dist_m, 2) if p and p.sign_kind else None,
-            "junction_conflict": bool(p.junction_conflict) if p else False,
+            # the driver judged the junction ahead not passable: gap too short (or blocked)
+            "junction_conflict": bool(getattr(getattr(self.driver, "debug", None), "yielding", False)),
+            "junction_gap_s": round(p.junction_gap_s, 2) if p and math.isfinite(p.junction_gap_s) else None,
             "driver_mode": getattr(getattr(self.driver, "debug", None), "mode", ""),
         }  # fmt: skip

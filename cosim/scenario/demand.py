@@ -116,50 +116,74 @@ def _heading(p, q) -> float:
     return math.degrees(math.atan2(q[1] - p[1], q[0] - p[0]))
 
 
+class RouteChainer:
+    """Chains A* legs to random destinations into a drivable route: no leg with a hairpin (a turn sharper
+    than HAIRPIN_DEG), destinations with a way on that is not one. Used for the ego's predefined route at
+    build time and to extend it while the ego drives (``cosim.phases.ego``)."""
+
+    BATCH = 8  # candidate destinations routed together
+
+    def __init__(self, comp: list):
+        self.length = {e.getID(): e.getLength() for e in comp}
+        # heading at each end of an edge: a turn sharper than HAIRPIN_DEG (a U-turn, or a hairpin into a
+        # parallel road that netconvert calls a left turn) makes the driver turn nearly on the spot
+        self.head_in = {e.getID(): _heading(e.getShape()[-2], e.getShape()[-1]) for e in comp}
+        self.head_out = {e.getID(): _heading(e.getShape()[0], e.getShape()[1]) for e in comp}
+        ends = set(self.length)
+        # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route
+        through = [
+            e.getID()
+            for e in comp
+            if any(not self.hairpin(e.getID(), o.getID()) for o in e.getOutgoing() if o.getID() in ends)
+        ]
+        self.dest_ids = through or sorted(ends)
+
+    def hairpin(self, a: str, b: str) -> bool:
+        """Whether going from edge ``a`` onto edge ``b`` turns sharper than HAIRPIN_DEG."""
+        turn = abs((self.head_out[b] - self.head_in[a] + 180.0) % 360.0 - 180.0)
+        return turn > HAIRPIN_DEG
+
+    def route_length(self, route: list[str]) -> float:
+        return sum(self.length.get(e, 0.0) for e in route)
+
+    def extend(self, route: list[str], rng: np.random.Generator, legs_for) -> float:
+        """Append one leg to ``route`` (in place) from a batch of random destinations; ``legs_for(pairs)``
+        returns {(origin, destination): edges} for the ones it could route. Returns the added length [m]
+        (0: no destination of the batch gave a leg without a hairpin)."""
+        dests = [self.dest_ids[int(i)] for i in rng.integers(0, len(self.dest_ids), self.BATCH)]
+        legs = legs_for([(route[-1], d) for d in dests])
+        for d in dests:
+            leg = legs.get((route[-1], d))
+            if not leg or len(leg) < 3 or any(self.hairpin(a, b) for a, b in itertools.pairwise(leg)):
+                continue
+            route.extend(leg[1:])
+            return self.route_length(leg[1:])
+        return 0.0
+
+
 def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: float, table: RouteTable,
                      net_file: Path, workdir: Path) -> list[str]:  # fmt: skip
     """The ego's predefined route: A* legs to random destinations chained from a seeded start edge."""
     starts = [e for e in comp if is_spawn_edge(e) and e.getLength() > 40 and e.getSpeed() >= 8.0] or comp
-    comp_ids = [e.getID() for e in comp]
-    length = {e.getID(): e.getLength() for e in comp}
-    # heading at each end of an edge: a turn sharper than HAIRPIN_DEG (a U-turn, or a hairpin into a
-    # parallel road that netconvert calls a left turn) makes the driver turn nearly on the spot
-    head_in = {e.getID(): _heading(e.getShape()[-2], e.getShape()[-1]) for e in comp}
-    head_out = {e.getID(): _heading(e.getShape()[0], e.getShape()[1]) for e in comp}
+    chainer = RouteChainer(comp)
 
-    def u_turn(a: str, b: str) -> bool:
-        turn = abs((head_out[b] - head_in[a] + 180.0) % 360.0 - 180.0)
-        return turn > HAIRPIN_DEG
+    def legs_for(pairs):
+        return table.routes(pairs, net_file, workdir)
 
-    ends = set(length)
-    # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route
-    through = [
-        e.getID()
-        for e in comp
-        if any(not u_turn(e.getID(), o.getID()) for o in e.getOutgoing() if o.getID() in ends)
-    ]
-    dest_ids = through or comp_ids
     best: list[str] = []
     for _ in range(6):  # a new start only when the route gets stuck (no leg without a U-turn)
         route = [starts[int(rng.integers(len(starts)))].getID()]
-        total = length[route[0]]
+        total = chainer.length[route[0]]
         stuck = False
         for _ in range(12):  # batches of candidate legs, routed together
             if total >= min_length_m:
                 return route
-            dests = [dest_ids[int(i)] for i in rng.integers(0, len(dest_ids), 8)]
-            legs = table.routes([(route[-1], d) for d in dests], net_file, workdir)
-            for d in dests:
-                leg = legs.get((route[-1], d))
-                if not leg or len(leg) < 3 or any(u_turn(a, b) for a, b in itertools.pairwise(leg)):
-                    continue
-                route.extend(leg[1:])
-                total += sum(length.get(e, 0.0) for e in leg[1:])
-                break
-            else:
+            added = chainer.extend(route, rng, legs_for)
+            if not added:
                 stuck = True
                 break
-        best = max(best, route, key=lambda r: sum(length.get(e, 0.0) for e in r))
+            total += added
+        best = max(best, route, key=chainer.route_length)
         if not stuck:  # as long as the batches allow on this map
             break
     return best

@@ -21,6 +21,10 @@ from cosim.world import World
 EGO_ID = "ego"
 LEAD_ID = "lead"
 EGO_VTYPE = "ego_car"  # the scenario's routes define it (cosim.scenario.demand), never teleported
+LEAD_VTYPE = "lead_car"  # the lead vehicle of the following task (cosim.phases.lead)
+# the lead drives a little below the limit, as a leader who wants to be followed does (an SCV's speed
+# factor is drawn from 0.8-1.2: a fast one would leave the participant behind at every stretch)
+LEAD_SPEED_FACTOR = 0.95
 OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
 MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
 # A car at rest in MuJoCo still creeps by ~1e-5 m. A pose a hair behind the last one makes SUMO measure the
@@ -28,6 +32,10 @@ MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centr
 # behind. At rest the ego's SUMO twin therefore keeps its pose until it moves by more than this [m].
 STANDSTILL_JITTER_M = 0.01
 STANDSTILL_SPEED_MPS = 0.05
+
+
+def _allows_cars(allowed: list[str] | tuple[str, ...]) -> bool:
+    return not allowed or "passenger" in allowed  # SUMO lists nothing when every class is allowed
 
 
 def _backend(use_traci: bool):
@@ -103,6 +111,7 @@ class SumoBridge:
         self._ego_pose: tuple[float, float, float] | None = None  # last pose written to SUMO
         self._colliding: set[tuple[str, str]] = set()
         self._removed: list[str] = []  # removed by cosim this step
+        self._tls_logics: dict[tuple[str, str], list[tuple[float, str]] | None] = {}
 
     def close(self) -> None:
         if self.open:
@@ -216,6 +225,11 @@ class SumoBridge:
         self.sumo.vehicle.remove(vid)
         self._removed.append(vid)
 
+    def pending_on(self, edges: list[str]) -> list[str]:
+        """Vehicles waiting to be inserted whose route starts on one of ``edges``."""
+        veh, wanted = self.sumo.vehicle, set(edges)
+        return [v for v in self.sumo.simulation.getPendingVehicles() if veh.getRoute(v)[0] in wanted]
+
     def add_vehicle(self, vid: str, route: list[str], *, depart: float | str = "now", type_id: str | None = None,
                     depart_speed: str = "0", color=None) -> None:  # fmt: skip
         rid = f"route_{vid}"
@@ -225,17 +239,48 @@ class SumoBridge:
         if color is not None:
             self.sumo.vehicle.setColor(vid, color)
 
+    def place_on_route(self, vid: str, route: list[str], front_m: float, *, type_id: str, color=None) -> None:
+        """Add a vehicle on ``route`` with its front bumper ``front_m`` along it and place it there at the next
+        step, whatever SUMO's insertion queue holds (moveToXY inserts a vehicle that has not departed yet;
+        a plain insertion waits behind every pending vehicle of its edge)."""
+        self.add_vehicle(vid, route, depart="now", type_id=type_id, color=color)
+        lane = self.sumo.lane
+        for edge in route:
+            lanes = [f"{edge}_{i}" for i in range(self.sumo.edge.getLaneNumber(edge))]
+            lane_id = next((ln for ln in lanes if _allows_cars(lane.getAllowed(ln))), lanes[0])
+            length = lane.getLength(lane_id)
+            if front_m <= length or edge == route[-1]:
+                break
+            front_m -= length
+        pos = min(max(front_m, 0.1), length - 0.1)
+        x, y = self.sumo.simulation.convert2D(edge, pos, int(lane_id.rpartition("_")[2]))
+        self.sumo.vehicle.moveToXY(vid, edge, int(lane_id.rpartition("_")[2]), x, y, keepRoute=1)
+
+    def add_lead(self, route: list[str], front_m: float) -> None:
+        """The lead vehicle of the following task, placed on ``route`` (see ``place_on_route``)."""
+        vtype = self.sumo.vehicletype
+        if LEAD_VTYPE not in vtype.getIDList():
+            vtype.copy("DEFAULT_VEHTYPE", LEAD_VTYPE)
+            vtype.setSpeedFactor(LEAD_VTYPE, LEAD_SPEED_FACTOR)
+            vtype.setSpeedDeviation(LEAD_VTYPE, 0.0)
+        self.place_on_route(LEAD_ID, route, front_m, type_id=LEAD_VTYPE, color=(40, 120, 255, 255))
+
     def add_ego(self, route: list[str], *, depart: float | str = "now", controlled: bool, length_m: float,
-                width_m: float) -> None:  # fmt: skip
-        """Insert the ego with the car's dimensions. When MuJoCo drives it (``controlled``), SUMO must not
-        move it by itself."""
+                width_m: float, front_m: float | None = None) -> None:  # fmt: skip
+        """Insert the ego with the car's dimensions; with ``front_m`` placed on its route at the next step
+        (``place_on_route``), else queued for insertion at ``depart``. When MuJoCo drives it
+        (``controlled``), SUMO must not move it by itself."""
         self.ego_id = EGO_ID
         vtype = self.sumo.vehicletype
         if EGO_VTYPE not in vtype.getIDList():  # a scenario from elsewhere: SUMO's default car
             vtype.copy("DEFAULT_VEHTYPE", EGO_VTYPE)
         vtype.setLength(EGO_VTYPE, length_m)
         vtype.setWidth(EGO_VTYPE, width_m)
-        self.add_vehicle(EGO_ID, route, depart=depart, type_id=EGO_VTYPE, color=(255, 40, 40, 255))
+        color = (255, 40, 40, 255)
+        if front_m is None:
+            self.add_vehicle(EGO_ID, route, depart=depart, type_id=EGO_VTYPE, color=color)
+        else:
+            self.place_on_route(EGO_ID, route, front_m, type_id=EGO_VTYPE, color=color)
         if controlled:
             veh = self.sumo.vehicle
             veh.setSpeedMode(EGO_ID, 0)  # no SUMO safety checks: the physics decides
@@ -275,11 +320,6 @@ class SumoBridge:
             return SumoEvent("ego_write_failed", EGO_ID, str(exc).splitlines()[0][:200])
         return None
 
-    def ego_edges_left(self) -> int:
-        """Edges of the route SUMO holds for the ego from the one it is on (or has just left) to the end."""
-        veh = self.sumo.vehicle
-        return len(veh.getRoute(EGO_ID)) - veh.getRouteIndex(EGO_ID)
-
     def set_ego_route(self, edges: list[str]) -> SumoEvent | None:
         """Replace the ego's route in SUMO; ``edges[0]`` must be the edge it is on."""
         try:
@@ -287,6 +327,57 @@ class SumoBridge:
         except Exception as exc:  # libsumo.TraCIException
             return SumoEvent("ego_route_rejected", EGO_ID, str(exc).splitlines()[0][:200])
         return None
+
+    def extend_route(self, vid: str, edges: list[str]) -> bool:
+        """Append ``edges`` to the route SUMO holds for ``vid`` (which must end where they start); False
+        when SUMO refused (e.g. while the vehicle is being inserted): the caller tries again later."""
+        veh = self.sumo.vehicle
+        try:
+            held = veh.getRoute(vid)
+            veh.setRoute(vid, [*held[veh.getRouteIndex(vid):], *edges])
+        except Exception:  # libsumo.TraCIException
+            return False
+        return True
+
+    def edges_left(self, vid: str) -> int:
+        """Edges of the route SUMO holds for ``vid`` from the one it is on (or has just left) to the end."""
+        veh = self.sumo.vehicle
+        return len(veh.getRoute(vid)) - veh.getRouteIndex(vid)
+
+    def cap_speed(self, vid: str, speed_mps: float | None) -> None:
+        """Limit a SUMO-driven vehicle's speed (its car following and right of way still apply); None gives
+        it back to SUMO's own driving."""
+        self.sumo.vehicle.setSpeed(vid, -1.0 if speed_mps is None else max(0.0, speed_mps))
+
+    def lane_speed_limit(self, vid: str) -> float:
+        """The speed the vehicle may drive on its lane (limit x its speed factor) [m/s]."""
+        return self.sumo.vehicle.getAllowedSpeed(vid)
+
+    def tls_green_left_s(self, tls_id: str, link_index: int) -> float:
+        """How long the light's link stays green (G or g) from now [s] following its programme (0 when it is
+        not green now; inf when it never changes)."""
+        tl = self.sumo.trafficlight
+        logic = self._tls_logic(tls_id, tl.getProgram(tls_id))
+        if logic is None:
+            return math.inf
+        phase = tl.getPhase(tls_id)
+        if logic[phase][1][link_index] not in "Gg":
+            return 0.0
+        left = tl.getNextSwitch(tls_id) - self.sumo.simulation.getTime()
+        for k in range(1, len(logic)):
+            duration, state = logic[(phase + k) % len(logic)]
+            if state[link_index] not in "Gg":
+                return left
+            left += duration
+        return math.inf
+
+    def _tls_logic(self, tls_id: str, program: str) -> list[tuple[float, str]] | None:
+        key = (tls_id, program)
+        if key not in self._tls_logics:
+            logic = next((lg for lg in self.sumo.trafficlight.getAllProgramLogics(tls_id) if lg.programID == program),
+                         None)  # fmt: skip
+            self._tls_logics[key] = [(p.duration, p.state) for p in logic.phases] if logic else None
+        return self._tls_logics[key]
 
     def min_gap(self, vid: str) -> float:
         """SUMO's getLeader distance excludes the follower's minGap; add this for the bumper gap [m]."""
@@ -297,17 +388,21 @@ class SumoBridge:
         return (res[0], res[1]) if res and res[0] else None
 
     def find_route(self, origin: str, destination: str) -> list[str]:
-        return list(self.sumo.simulation.findRoute(origin, destination, vType="DEFAULT_VEHTYPE").edges)
+        """SUMO's fastest route (the run's routing algorithm: A*) from edge to edge; [] when there is none."""
+        try:
+            return list(self.sumo.simulation.findRoute(origin, destination, vType="DEFAULT_VEHTYPE").edges)
+        except Exception:  # libsumo.TraCIException: unknown or unreachable edge
+            return []
 
     def vehicle_ids(self) -> list[str]:
         return list(self.sumo.vehicle.getIDList())
 
-    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float]]:
-        """(foe id, its distance to the conflict [m]) for the vehicles ``vid`` must yield to at the junctions
-        within ``lookahead_m`` on its route (SUMO's own right-of-way model)."""
+    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float]]:
+        """(foe id, the ego's distance to the conflict, the foe's [m]) for the vehicles ``vid`` must yield to
+        at the junctions within ``lookahead_m`` on its route (SUMO's own right-of-way model)."""
         foes = self.sumo.vehicle.getJunctionFoes(vid, lookahead_m)
         # tuples: (foeId, egoDist, foeDist, egoExitDist, foeExitDist, egoLane, foeLane, egoResponse, foeResponse)
-        return [(f[0], f[2]) for f in foes if f[7]]
+        return [(f[0], f[1], f[2]) for f in foes if f[7]]
 
     def next_tls(self, vid: str) -> tuple[str, int, float, str] | None:
         """(tls id, link index, distance to the stop line [m], state char) of the next light, if any."""

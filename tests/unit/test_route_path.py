@@ -4,17 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.phases.ego import RoutePath
+from cosim.driver.route import RoutePath
 
 
 def path_through(points: list[tuple[float, float]]) -> RoutePath:
     """A RoutePath over a hand-made centre line (the network part is not needed to project)."""
-    p = RoutePath.__new__(RoutePath)
-    p.xy = np.asarray(points, dtype=np.float64)
-    p.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p.xy, axis=0).T))])
-    p.length_m = float(p.s[-1])
-    p._last_s = 0.0
-    return p
+    return RoutePath(points)
 
 
 def test_a_later_pass_close_by_does_not_capture_the_projection():
@@ -30,3 +25,12 @@ def test_a_later_pass_close_by_does_not_capture_the_projection():
         x, y = np.interp(s_true, p.s, p.xy[:, 0]), np.interp(s_true, p.s, p.xy[:, 1])
         s, offset = p.project(float(x), float(y))
         assert abs(s - s_true) < 1e-6 and abs(offset) < 1e-6
+
+
+def test_a_second_point_tracked_near_its_own_arc_position_leaves_the_ego_projection_alone():
+    """The lead's rear is projected near its own arc position; the ego's last hit stays where it was."""
+    p = path_through([(0, 0), (100, 0), (100, 200), (300, 200), (300, 1.5), (-50, 1.5)])
+    s_ego, _ = p.project(10.0, 0.5)
+    s_lead, off = p.project(100.5, 30.0, near_s=120.0)
+    assert abs(s_lead - 130.0) < 1e-9 and abs(off + 0.5) < 1e-9  # right of the northward pass
+    assert p._last_s == s_ego

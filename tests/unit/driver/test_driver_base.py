@@ -66,7 +66,7 @@ def test_percept_validation_and_derived_errors():
     with pytest.raises(ValueError, match="tls_dist_m"):
         percept(tls_state="r")
     with pytest.raises(ValueError, match="sign_kind"):
-        percept(sign_kind="yield", sign_dist_m=10.0)
+        percept(sign_kind="priority", sign_dist_m=10.0)
     with pytest.raises(ValueError, match="sign_dist_m"):
         percept(sign_kind="stop")
     with pytest.raises(ValueError, match="sys_b_level"):

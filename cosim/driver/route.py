@@ -1,0 +1,225 @@
+"""The ego's route as geometry: one lane centre-line polyline with arc lengths, its stop lines and speed
+limits, built from the network once per route (and again when the route is extended).
+
+Pure geometry on numpy arrays: ``RoutePath.from_network`` reads the lanes and connections through a
+sumolib-like network object; everything else works on the polylines alone (unit tests build one from a
+hand-made centre line).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+LANE_CHANGE_LENGTH_M = 30.0  # the path changes to the lane of the next connection over this length [m]
+BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
+PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
+
+
+@dataclass(frozen=True)
+class StopLine:
+    s_m: float  # arc position of the stop line on the route path [m]
+    junction: str
+    state: str  # SUMO link state of the route's connection ('M','m','s','w','=', ...)
+    xy: tuple[float, float]  # junction centre
+    direction: str = "s"  # SUMO's direction of the route's connection: s, l, r, t, L, R (partly left/right)
+    into_roundabout: bool = False  # the connection enters a roundabout
+    edge_index: int = -1  # index in the route of the edge that ends at this line
+
+
+class RoutePath:
+    """The route as one lane centre-line polyline with arc lengths, its stop lines and speed limits."""
+
+    def __init__(self, xy, stop_lines: list[StopLine] = (), limits: list[tuple[float, float]] = ((0.0, 13.89),)):
+        """``xy``: (N, 2) centre-line points; ``limits``: (arc position where it starts, speed [m/s])."""
+        xy = np.asarray(xy, dtype=np.float64)
+        keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
+        self.xy = xy[keep]
+        self.s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(self.xy, axis=0).T))])
+        self.length_m = float(self.s[-1])
+        self.stop_lines = list(stop_lines)
+        self.stop_s = [stop.s_m for stop in self.stop_lines]  # arc positions, non-decreasing
+        self.limit_s = np.asarray([a for a, _ in limits], dtype=np.float64)
+        self.limit_v = np.asarray([b for _, b in limits], dtype=np.float64)
+        self._last_s = 0.0  # arc position of the last projection
+
+    @classmethod
+    def from_network(cls, net, route: list[str]) -> RoutePath:
+        """The path along ``route`` (edge ids) in ``net`` (a sumolib network read with internal lanes): on
+        each edge the lane that has the connection to the next edge, through the junction's internal lane."""
+        line = _Polyline()
+        stop_lines: list[StopLine] = []
+        limits: list[tuple[float, float]] = []  # (s where it starts, speed)
+        roundabout_edges = {e for r in net.getRoundabouts() for e in r.getEdges()}
+        entry_lane = None
+        for i, eid in enumerate(route):
+            edge = net.getEdge(eid)
+            nxt = net.getEdge(route[i + 1]) if i + 1 < len(route) else None
+            conns = [c for c in edge.getOutgoing().get(nxt, [])] if nxt else []
+            conns = sorted(conns, key=lambda c: c.getFromLane().getIndex())
+            lane = conns[0].getFromLane() if conns else (entry_lane or edge.getLane(0))
+            shape = [tuple(p[:2]) for p in lane.getShape()]
+            if entry_lane is not None and entry_lane is not lane and line.pts:  # change lanes early on the edge
+                shape = _trim_start(shape, min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength()))
+            s0 = line.extend(shape)
+            limits.append((s0, lane.getSpeed()))
+            if conns:
+                c = conns[0]
+                node = edge.getToNode()
+                into_roundabout = nxt.getID() in roundabout_edges and eid not in roundabout_edges
+                stop_lines.append(StopLine(line.length, node.getID(), c.getState(), tuple(node.getCoord()[:2]),
+                                           c.getDirection(), into_roundabout, i))  # fmt: skip
+                via = c.getViaLaneID()
+                if via:
+                    line.extend([tuple(p[:2]) for p in net.getLane(via).getShape()])
+                entry_lane = c.getToLane()
+        return cls(line.pts, stop_lines, limits)
+
+    def project(self, x: float, y: float, near_s: float | None = None) -> tuple[float, float]:
+        """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit
+        (or near ``near_s``, for a second point tracked on the same path, which then is not remembered).
+
+        The search is bounded by arc length around the last hit: a route that comes back past the same
+        place later must not capture the projection (the driver would steer for the later pass)."""
+        around = self._last_s if near_s is None else near_s
+        lo = max(0, int(self.s.searchsorted(around - PROJECT_BEHIND_M)) - 1)
+        hi = min(len(self.xy) - 1, max(lo + 1, int(self.s.searchsorted(around + PROJECT_AHEAD_M))))
+        s, offset, at_window_end = self._nearest(lo, hi, x, y)
+        if at_window_end and abs(offset) > 20.0 and hi - lo < len(self.xy) - 1:  # lost: search everywhere
+            s, offset, _ = self._nearest(0, len(self.xy) - 1, x, y)
+        if near_s is None:
+            self._last_s = s
+        return s, offset
+
+    @cached_property
+    def _segments(self) -> tuple[np.ndarray, ...]:
+        """Per segment (point i to i + 1): start x, start y, direction x, direction y, squared length (at
+        least 1e-12) and length; constants of the route, computed once for every projection."""
+        a, d = self.xy[:-1], np.diff(self.xy, axis=0)
+        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+        return a[:, 0].copy(), a[:, 1].copy(), d[:, 0].copy(), d[:, 1].copy(), seg2, np.sqrt(seg2)
+
+    def _nearest(self, lo: int, hi: int, x: float, y: float) -> tuple[float, float, bool]:
+        """Projection onto the segments from point ``lo`` to point ``hi``; also whether it fell on the
+        first or last of them."""
+        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
+        t = np.minimum(np.maximum(((x - ax) * dx + (y - ay) * dy) / seg2, 0.0), 1.0)
+        dist2 = (ax + t * dx - x) ** 2 + (ay + t * dy - y) ** 2
+        k = int(dist2.argmin())
+        cross = dx[k] * (y - ay[k]) - dy[k] * (x - ax[k])
+        s = float(self.s[lo + k] + t[k] * seg_len[k])
+        return s, math.copysign(math.sqrt(dist2[k]), cross), k in (0, len(dist2) - 1)
+
+    def edge_index(self, s: float) -> int:
+        """Index in the route of the edge at arc position ``s`` (the edge just left while in a junction)."""
+        return max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)
+
+    def window(self, s_from: float, s_to: float) -> np.ndarray:
+        """The path from arc position ``s_from`` to ``s_to``: both ends interpolated, the points between."""
+        s_from, s_to = max(0.0, s_from), min(self.length_m, s_to)
+        first = int(self.s.searchsorted(s_from, side="right"))  # the points strictly inside
+        inner = self.xy[first : max(first, int(self.s.searchsorted(s_to, side="left")))]
+        out = np.empty((len(inner) + 2, 2))
+        out[1:-1] = inner
+        out[0, 0], out[-1, 0] = np.interp([s_from, s_to], self.s, self.xy[:, 0]).tolist()
+        out[0, 1], out[-1, 1] = np.interp([s_from, s_to], self.s, self.xy[:, 1]).tolist()
+        return out
+
+    @cached_property
+    def _boxes(self) -> tuple[np.ndarray, ...]:
+        """x min, y min, x max, y max of each run of BOX_SEGMENTS segments (run k: segments from k *
+        BOX_SEGMENTS on), for a first cheap test of which points can be near the path."""
+        x, y = self.xy[:, 0], self.xy[:, 1]
+        starts = np.arange(0, len(self.xy) - 1, BOX_SEGMENTS)
+        return (
+            np.minimum.reduceat(np.minimum(x[:-1], x[1:]), starts),
+            np.minimum.reduceat(np.minimum(y[:-1], y[1:]), starts),
+            np.maximum.reduceat(np.maximum(x[:-1], x[1:]), starts),
+            np.maximum.reduceat(np.maximum(y[:-1], y[1:]), starts),
+        )
+
+    def vehicles_on_path(self, xs: np.ndarray, ys: np.ndarray, s_from: float, s_to: float,
+                         half_width_m: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Arc positions of points lying on the path between ``s_from`` and ``s_to`` (within
+        ``half_width_m`` of its centre line); returns (index into xs, arc position) of those points."""
+        lo = max(0, int(self.s.searchsorted(s_from)) - 1)
+        hi = min(len(self.s) - 1, int(self.s.searchsorted(s_to)) + 1)
+        if hi <= lo or len(xs) == 0:
+            return np.zeros(0, dtype=int), np.zeros(0)
+        # Only points inside the bounding box of some run of segments (1 m spare for rounding) can lie on
+        # the path: the others are dropped before the (points x segments) search, which treats every
+        # point on its own.
+        c0, c1 = lo // BOX_SEGMENTS, (hi - 1) // BOX_SEGMENTS + 1
+        pad = half_width_m + 1.0
+        x0, y0, x1, y1 = (b[c0:c1] for b in self._boxes)
+        px, py = xs[:, None], ys[:, None]
+        inside = (px >= x0 - pad) & (px <= x1 + pad) & (py >= y0 - pad) & (py <= y1 + pad)
+        rows = np.flatnonzero(inside.any(axis=1))
+        if rows.size == 0:
+            return rows, np.zeros(0)
+        ax, ay, dx, dy, seg2, seg_len = (v[lo:hi] for v in self._segments)
+        px, py = xs[rows, None], ys[rows, None]
+        t = np.minimum(np.maximum(((px - ax) * dx + (py - ay) * dy) / seg2, 0.0), 1.0)
+        dist2 = (ax + t * dx - px) ** 2 + (ay + t * dy - py) ** 2
+        k = dist2.argmin(axis=1)
+        near = np.arange(len(rows))
+        s_at = self.s[lo + k] + t[near, k] * seg_len[k]
+        on = (dist2[near, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
+        return rows[on], s_at[on]
+
+    def speed_limit(self, s: float) -> tuple[float, float | None, float]:
+        """(limit here, next different limit or None, distance to it)."""
+        i = max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)
+        j = self._next_limit_change[i]
+        if j is None:
+            return float(self.limit_v[i]), None, math.inf
+        return float(self.limit_v[i]), float(self.limit_v[j]), float(self.limit_s[j] - s)
+
+    @cached_property
+    def _next_limit_change(self) -> list[int | None]:
+        """For each limit, the index of the next one that differs from it by more than 0.1 m/s (or None)."""
+        v = self.limit_v
+        return [
+            next((j for j in range(i + 1, len(v)) if abs(v[j] - v[i]) > 0.1), None) for i in range(len(v))
+        ]
+
+
+def _length(pts) -> float:
+    return float(sum(math.dist(a, b) for a, b in itertools.pairwise(pts)))
+
+
+class _Polyline:
+    """Points appended shape by shape, with the running length (the route can have thousands)."""
+
+    def __init__(self):
+        self.pts: list[tuple[float, float]] = []
+        self.length = 0.0
+
+    def extend(self, shape: list) -> float:
+        """Append ``shape``; returns the length before it (the limit of a lane starts at its joint)."""
+        s0 = self.length
+        gap = math.dist(self.pts[-1], shape[0]) if self.pts and shape else 0.0
+        self.pts.extend(shape)
+        self.length = s0 + gap + _length(shape)
+        return s0
+
+
+def _trim_start(shape: list, dist: float) -> list:
+    acc = 0.0
+    for i in range(1, len(shape)):
+        seg = math.dist(shape[i - 1], shape[i])
+        if acc + seg >= dist:
+            f = (dist - acc) / seg if seg else 0.0
+            p = (
+                shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]),
+                shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]),
+            )
+            return [p, *shape[i:]]
+        acc += seg
+    return shape[-1:]
+
+

@@ -1,0 +1,175 @@
+"""Every run's own health check: did the drive that the results stand on actually happen?
+
+``DriveHealth`` records a few numbers per step (the ego's presence and speed, whom it follows, whether it
+waits at a red light) and the traffic events, and reports for the whole run or any time window (an
+experiment phase):
+
+- ``ego_present_at_s``: when the ego first was in the simulation;
+- ``ego_distance_m``, ``longest_standstill_s`` (and the longest outside red lights), ``stalls``: standstills
+  longer than ``STALL_S`` (a light cycle) that were not at a red light, each also logged as an
+  ``ego_stall`` event naming what the ego waited for;
+- ``following_share``: share of the ego's states with a vehicle ahead on its path within ``FOLLOW_M``
+  (moving or queued behind it); ``lead_leader_share``: share in which that vehicle is the lead car;
+  ``cut_ins``: other vehicles that came between the lead and the ego;
+- ``collisions`` (any vehicle), ``ego_collisions``, ``teleports`` and ``teleport_share`` of the vehicles
+  that departed.
+
+``status`` is ``degraded`` with the reasons in ``problems`` whenever one of them misses what a drive the
+results can stand on needs (the thresholds below); a run never reports ``ok`` with an empty drive.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoEvent
+
+STALL_S = 90.0  # a standstill outside red lights longer than this (a light cycle) is a stall [s]
+MAX_STANDSTILL_S = 120.0  # a longer standstill degrades the drive [s]
+FOLLOW_M = 100.0  # a vehicle ahead on the ego's path within this gap is being followed [m]
+STOPPED_MPS = 0.1  # [m/s]
+MIN_MEAN_SPEED_MPS = 2.0  # a drive slower than this on average (7 km/h) did not really happen [m/s]
+MIN_FOLLOWING_SHARE = 0.8  # with a lead car: the following task needs at least this share ...
+MIN_LEAD_LEADER_SHARE = 0.9  # ... and the lead must be the direct leader at least this often
+MAX_TELEPORT_SHARE = 0.01  # of the vehicles that departed
+PRESENT_WITHIN_S = 1.0  # the ego is in the simulation this soon after its departure time [s]
+MIN_WINDOW_S = 30.0  # shorter windows are not judged on distance and shares [s]
+
+
+class DriveHealth:
+    def __init__(self, sim):
+        self.sim = sim
+        self.has_lead = bool(sim.config.ego.enabled and sim.config.ego.lead_vehicle)
+        self.ego_expected = bool(sim.config.ego.enabled)
+        self.depart_s = float(sim.config.ego.depart_s)
+        self.t: list[float] = []  # per step with the ego present
+        self.speed: list[float] = []
+        self.following: list[bool] = []
+        self.lead_leader: list[bool] = []
+        self.at_red: list[bool] = []
+        self.all_t: list[float] = []  # per step
+        self.departed: list[int] = []
+        self.events: list[tuple[float, str, bool]] = []  # (t, kind, whether the ego is involved)
+        self.ego_present_at_s: float | None = None
+        self._still_since: float | None = None
+        self._stall_logged = False
+        sim.add_hook("writeback", self.step)
+
+    def step(self, sim) -> None:
+        w = sim.world
+        t = float(w.t_s)
+        self.all_t.append(t)
+        self.departed.append(int(np.count_nonzero(w.depart_step[w.valid] == w.step)))
+        for ev in sim.events:
+            if ev.kind in ("collision", "teleport", "lead_cut_in", "ego_stall"):
+                self.events.append((t, ev.kind, ev.vehicle == EGO_ID or f"with {EGO_ID} " in ev.detail))
+        ego = w.slot_of.get(EGO_ID)
+        if ego is None:
+            return
+        if self.ego_present_at_s is None:
+            self.ego_present_at_s = t
+        percept = getattr(sim.ego, "percept", None)
+        speed = float(w.speed_mps[ego])
+        leader = percept.leader_id if percept is not None and percept.leader_present else None
+        red = percept is not None and percept.tls_state == "r" and percept.tls_dist_m < 60.0
+        self.t.append(t)
+        self.speed.append(speed)
+        self.following.append(leader is not None and percept.leader_gap_m <= FOLLOW_M)
+        self.lead_leader.append(leader == LEAD_ID)
+        self.at_red.append(red)
+        self._watch_stall(sim, t, speed, red, percept)
+
+    def _watch_stall(self, sim, t: float, speed: float, red: bool, percept) -> None:
+        """Log an ``ego_stall`` event once a standstill outside red lights passes STALL_S."""
+        if speed >= STOPPED_MPS or red:
+            self._still_since, self._stall_logged = None, False
+            return
+        if self._still_since is None:
+            self._still_since = t
+        if not self._stall_logged and t - self._still_since > STALL_S:
+            self._stall_logged = True
+            mode = getattr(getattr(getattr(sim.ego, "driver", None), "debug", None), "mode", "")
+            what = [f"driver: {mode or '?'}"]
+            if percept is not None and percept.leader_present:
+                what.append(f"behind {percept.leader_id} at {percept.leader_gap_m:.0f} m")
+            if percept is not None and percept.sign_kind:
+                what.append(f"{percept.sign_kind} line {percept.sign_dist_m:.0f} m ahead at {percept.sign_id}")
+            sim.events.append(SumoEvent("ego_stall", EGO_ID, f"standing {STALL_S:.0f} s: " + ", ".join(what),
+                                        t - self._still_since))  # fmt: skip
+
+    def report(self, t0: float = -math.inf, t1: float = math.inf) -> dict:
+        """The health of the window [t0, t1] of the run (the whole run by default)."""
+        t = np.asarray(self.t)
+        m = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+        all_t = np.asarray(self.all_t)
+        window_s = float(min(t1, all_t[-1]) - max(t0, all_t[0])) if all_t.size else 0.0
+        step_s = self.sim.step_s
+        speed = np.asarray(self.speed)[m]
+        still = (speed < STOPPED_MPS).astype(np.int8)
+        red = np.asarray(self.at_red, dtype=bool)[m]
+        events = [(k, v) for te, k, v in self.events if t0 - 1e-9 <= te <= t1 + 1e-9]
+        count = {k: sum(1 for kind, _ in events if kind == k) for k in ("collision", "teleport", "lead_cut_in", "ego_stall")}
+        departed = int(np.asarray(self.departed)[(all_t >= t0 - 1e-9) & (all_t <= t1 + 1e-9)].sum()) if all_t.size else 0
+        rep = {
+            "window_s": round(max(window_s, 0.0), 1),
+            "ego_present_at_s": self.ego_present_at_s,
+            "ego_states": int(m.sum()),
+            "ego_distance_m": round(float(speed.sum() * step_s), 1),
+            "longest_standstill_s": round(_longest_run(still) * step_s, 1),
+            "longest_standstill_not_red_s": round(_longest_run(still & ~red) * step_s, 1),
+            "stalls": count["ego_stall"],
+            "following_share": _share(np.asarray(self.following, dtype=bool)[m]),
+            "lead_leader_share": _share(np.asarray(self.lead_leader, dtype=bool)[m]) if self.has_lead else None,
+            "cut_ins": count["lead_cut_in"] if self.has_lead else None,
+            "collisions": count["collision"],
+            "ego_collisions": sum(1 for kind, with_ego in events if kind == "collision" and with_ego),
+            "teleports": count["teleport"],
+            "vehicles_departed": departed,
+            "teleport_share": round(count["teleport"] / departed, 4) if departed else 0.0,
+        }
+        rep["problems"] = self._problems(rep, t0)
+        rep["status"] = "degraded" if rep["problems"] else "ok"
+        return rep
+
+    def _problems(self, rep: dict, t0: float) -> list[str]:
+        if not self.ego_expected:
+            return []
+        out = []
+        if rep["ego_states"] == 0:
+            return ["the ego never drove in this window"]
+        if t0 == -math.inf and rep["ego_present_at_s"] > self.depart_s + PRESENT_WITHIN_S + 1e-9:
+            out.append(f"the ego entered the simulation only at {rep['ego_present_at_s']:.1f} s")
+        judged = rep["window_s"] >= MIN_WINDOW_S
+        if judged and rep["ego_distance_m"] < MIN_MEAN_SPEED_MPS * rep["window_s"]:
+            out.append(f"the ego drove only {rep['ego_distance_m']:.0f} m in {rep['window_s']:.0f} s")
+        if rep["longest_standstill_s"] > MAX_STANDSTILL_S:
+            out.append(f"the ego stood still for {rep['longest_standstill_s']:.0f} s")
+        if rep["stalls"]:
+            out.append(f"{rep['stalls']} stall(s) outside red lights (see the ego_stall events)")
+        if judged and self.has_lead:
+            if rep["following_share"] < MIN_FOLLOWING_SHARE:
+                out.append(f"following only {rep['following_share']:.0%} of the time")
+            if rep["lead_leader_share"] < MIN_LEAD_LEADER_SHARE:
+                out.append(f"the lead car was the ego's leader only {rep['lead_leader_share']:.0%} of the time")
+        if rep["ego_collisions"]:
+            out.append(f"{rep['ego_collisions']} collision(s) of the ego")
+        if rep["collisions"] - rep["ego_collisions"]:
+            out.append(f"{rep['collisions'] - rep['ego_collisions']} collision(s) between other vehicles")
+        if rep["teleport_share"] > MAX_TELEPORT_SHARE:
+            out.append(f"{rep['teleports']} teleports ({rep['teleport_share']:.1%} of the vehicles)")
+        return out
+
+
+def _share(flags: np.ndarray) -> float:
+    return round(float(flags.mean()), 3) if flags.size else 0.0
+
+
+def _longest_run(flags: np.ndarray) -> int:
+    """Length of the longest run of ones."""
+    if not flags.size or not flags.any():
+        return 0
+    padded = np.concatenate([[0], flags.astype(np.int8), [0]])
+    edges = np.flatnonzero(np.diff(padded))
+    return int((edges[1::2] - edges[0::2]).max())
