@@ -1,9 +1,14 @@
 """The head-up display drawn onto a rendered frame (numpy + Pillow).
 
 It shows what the participant sees besides the road: speed, the current speed limit, system B's in-car
-time-gap display with its warning colour, a 'KEEP DISTANCE' indicator when the driver perceives system A's
-rear display, the active experiment phase and (live) the real-time factor. Live driving and replay fill
-the same :class:`HudState`, so a replayed video shows exactly what the live window showed.
+time-gap display with its warning colour, the active experiment phase and (live) the real-time factor.
+Live driving and replay fill the same :class:`HudState`, so a replayed video shows exactly what the live
+window showed.
+
+System A has no in-car part: its warning exists only on the leading car's rear display, which the 3D scene
+draws on the leader (the paper's system). The HUD therefore never shows it to the driver. For someone
+watching a run, ``HudState.observer_overlay`` adds a small, clearly labelled observer note when the driver
+perceives that display; it is off by default and never set in ``cosim drive`` or a participant's view.
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ LEVEL_COLOURS = {
     "warning": ((205, 20, 20), (255, 255, 255)),
 }
 NO_DATA_COLOURS = ((70, 70, 70), (220, 220, 220))
+OBSERVER_COLOURS = ((40, 40, 120, 200), (230, 230, 255))  # the observer overlay (background, text)
 
 
 @dataclass(frozen=True)
@@ -36,7 +42,8 @@ class HudState:
     sys_b_active: bool = False  # system B's in-car display is switched on (this phase)
     sys_b_gap_s: float | None = None  # [s] time gap it shows; None = 'no data'
     sys_b_level: str = "none"  # 'none' | 'advisory' (amber) | 'warning' (red)
-    sys_a_perceived: bool = False  # the driver perceives the leader's 'keep distance' rear display
+    sys_a_perceived: bool = False  # the driver perceives the leader's rear display (data, not drawn)
+    observer_overlay: bool = False  # draw an observer's note of sys_a_perceived (never in a driver's view)
     phase: str | None = None  # active experiment phase (e.g. 'baseline', 'system A'), None = not in one
     real_time_factor: float | None = None  # simulated / wall time (live only)
     note: str | None = None  # one line of status (e.g. 'ego off road')
@@ -95,13 +102,15 @@ def draw_hud(frame: np.ndarray, hud: HudState) -> np.ndarray:
         d.text((x1 + bw2 // 2, pad + int(20 * s)), "time gap", fill=fg, font=small, anchor="mm")
         d.text((x1 + bw2 // 2, pad + int(56 * s)), text, fill=fg, font=mid, anchor="mm")
 
-    # system A perceived: 'KEEP DISTANCE' indicator below the centre top
-    if hud.sys_a_perceived:
-        bw3, bh3 = int(330 * s), int(50 * s)
-        x2 = (w - bw3) // 2
-        y2 = pad + (int(96 * s) if hud.sys_b_active else 0)
-        _box(d, (x2, y2, x2 + bw3, y2 + bh3), (255, 150, 0, 235), int(10 * s))
-        d.text((x2 + bw3 // 2, y2 + bh3 // 2), "KEEP DISTANCE", fill=(0, 0, 0), font=mid, anchor="mm")
+    # system A is on the leader's rear display only: nothing in the car. An observer (not the driver) may
+    # ask for a note that the driver perceives it, bottom right, in the observer's colours.
+    if hud.observer_overlay and hud.sys_a_perceived:
+        text = "observer: driver sees system A"
+        tw = int(d.textlength(text, font=small)) + 2 * pad
+        bh3 = int(34 * s)
+        x2, y2 = w - pad - tw, h - pad - bh3
+        _box(d, (x2, y2, x2 + tw, y2 + bh3), OBSERVER_COLOURS[0], int(6 * s))
+        d.text((x2 + tw // 2, y2 + bh3 // 2), text, fill=OBSERVER_COLOURS[1], font=small, anchor="mm")
 
     # phase and time, top left; real-time factor and notes, top right
     lines = [f"t = {hud.t_s:7.1f} s"]

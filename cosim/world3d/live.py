@@ -13,6 +13,10 @@ What it reads (all optional except the world):
   ``a_lit`` (system A's display is lit, readable or not), ``leader_id`` and the experiment ``phase``;
   the leader carries a display panel only while system A is in use (lit or dark);
 - ``sim.outputs["rear_display_lit"]`` / ``["experiment_phase"]``: overrides of the above, if a phase sets them.
+
+System A's warning is shown only where the paper puts it, on the leader's rear display (``rear_display_lit``);
+the HUD gets ``sys_a_perceived`` as data but draws nothing for it unless ``observer_overlay`` is set, which
+``cosim drive`` and a participant's view never do.
 """
 
 from __future__ import annotations
@@ -30,8 +34,9 @@ from cosim.world3d.state import EgoPose, FrameState, VehicleFrame
 class LiveSource:
     """Turns the simulation's state into frames; keeps small caches (lane speeds) between calls."""
 
-    def __init__(self, sim) -> None:
+    def __init__(self, sim, observer_overlay: bool = False) -> None:
         self.sim = sim
+        self.observer_overlay = observer_overlay  # an observer's note of system A on the HUD (not a driver's)
         self._lane_speed: dict[tuple[str, int], float | None] = {}
 
     def lane_speed(self, edge: str, lane: int) -> float | None:
@@ -100,7 +105,7 @@ class LiveSource:
             t_s=sim.world.t_s, speed_mps=speed if math.isfinite(speed) else 0.0, speed_limit_mps=limit,
             sys_b_active=sys_b_active, sys_b_gap_s=None if gap is None else float(gap),
             sys_b_level=str(adas.get("sys_b_level") or "none"), sys_a_perceived=bool(adas.get("sys_a_lit", False)),
-            phase=phase, real_time_factor=real_time_factor, note=note,
+            observer_overlay=self.observer_overlay, phase=phase, real_time_factor=real_time_factor, note=note,
         )  # fmt: skip
         if "rear_display_lit" in sim.outputs:
             lit = bool(sim.outputs["rear_display_lit"])

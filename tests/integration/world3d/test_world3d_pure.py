@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -120,7 +121,7 @@ def test_interpolation_blends_poses_the_short_way_round():
     assert Interpolator(a, b).at(7.0).ego.x_m == pytest.approx(10.0)  # clamped
 
 
-def test_hud_shows_warning_colours_and_the_keep_distance_indicator():
+def test_hud_shows_warning_colours_and_no_in_car_system_a_warning():
     frame = np.full((360, 640, 3), 128, dtype=np.uint8)
     base = HudState(t_s=1.0, speed_mps=13.9, speed_limit_mps=13.89)
     plain = draw_hud(frame, base)
@@ -133,15 +134,34 @@ def test_hud_shows_warning_colours_and_the_keep_distance_indicator():
         bg = np.array(LEVEL_COLOURS[level][0], dtype=float)
         patch = img[9:12, 266:380].reshape(-1, 3).astype(float)  # inside the box, above the text
         assert np.abs(patch.mean(axis=0) - (0.9 * bg + 0.1 * 128)).max() < 12
-    a = draw_hud(frame, HudState(t_s=1.0, speed_mps=10.0, sys_a_perceived=True))
-    assert (
-        np.abs(
-            a[9:12, 245:300].astype(float).mean(axis=(0, 1)) - (0.92 * np.array([255, 150, 0]) + 0.08 * 128)
-        ).max()
-        < 12
-    )
+    # system A is the leader's rear display only: the driver's HUD is the same whether it is perceived or not
+    seen = HudState(t_s=1.0, speed_mps=10.0, sys_a_perceived=True)
+    assert np.array_equal(draw_hud(frame, seen), draw_hud(frame, HudState(t_s=1.0, speed_mps=10.0)))
+    for b_on in (False, True):
+        with_b = HudState(t_s=1.0, speed_mps=10.0, sys_b_active=b_on, sys_b_gap_s=2.5, sys_a_perceived=True)
+        assert np.array_equal(
+            draw_hud(frame, with_b), draw_hud(frame, dataclasses.replace(with_b, sys_a_perceived=False))
+        )
+    # an observer may ask for a note of it (off by default), never the old amber in-car banner
+    obs = draw_hud(frame, dataclasses.replace(seen, observer_overlay=True))
+    assert not np.array_equal(obs, draw_hud(frame, seen))
+    assert np.array_equal(obs[:120], draw_hud(frame, seen)[:120])  # nothing at the top (where the banner was)
+    amber = np.all(np.abs(obs.astype(int) - (255, 150, 0)) < 30, axis=2)
+    assert not amber.any()
     with pytest.raises(ValueError):
         HudState(t_s=0.0, speed_mps=1.0, sys_b_level="red")
+
+
+def test_live_view_never_shows_system_a_in_the_car():
+    """`cosim drive` (and a participant at the wheel) build LiveSource without the observer overlay."""
+    import inspect
+
+    from cosim.world3d import drive
+    from cosim.world3d.live import LiveSource
+
+    assert inspect.signature(LiveSource).parameters["observer_overlay"].default is False
+    assert "observer_overlay" not in inspect.getsource(drive)
+    assert HudState(t_s=0.0, speed_mps=0.0).observer_overlay is False
 
 
 def _ego_topic(ts, xs, heading=90.0):
