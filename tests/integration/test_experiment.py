@@ -40,7 +40,7 @@ def test_summary_has_the_three_phases_per_participant(short_experiment):
         assert [p["system"] for p in part["phases"]] == [
             {"baseline": "none", "system_A": "A", "system_B": "B"}[o] for o in order
         ]
-        assert part["run"]["collisions"] == 0 or part["run"]["collisions"] < 5
+        assert part["run"]["collisions"] == 0, part["run"]
     on_disk = json.loads((out / "summary.json").read_text())
     assert on_disk["participants"][0]["participant"] == "P1"
     for pid in ("P1", "P2"):

@@ -1,14 +1,38 @@
 """A person as a participant: `cosim experiment --participant-driver keyboard` opens the driver view and
-runs the protocol in real time (here under Xvfb, with nobody touching the keys)."""
+runs the protocol in real time (here under Xvfb, the throttle key pressed through XTEST)."""
 
 from __future__ import annotations
 
+import ctypes
 import json
 import os
 import subprocess
 import sys
+import time
 
-from test_world3d_drive import XServer
+import numpy as np
+from test_world3d_drive import XKeys, XServer
+
+from cosim.log import read
+
+
+def _windows(keys: XKeys) -> int:
+    """How many top-level windows the X server shows (no window manager: the root's children)."""
+    x = keys.x
+    x.XDefaultRootWindow.restype = ctypes.c_ulong
+    x.XDefaultRootWindow.argtypes = [ctypes.c_void_p]
+    x.XQueryTree.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.POINTER(ctypes.c_ulong),
+                             ctypes.POINTER(ctypes.c_ulong), ctypes.POINTER(ctypes.POINTER(ctypes.c_ulong)),
+                             ctypes.POINTER(ctypes.c_uint)]  # fmt: skip
+    x.XFree.argtypes = [ctypes.c_void_p]
+    root, parent, n = ctypes.c_ulong(), ctypes.c_ulong(), ctypes.c_uint()
+    children = ctypes.POINTER(ctypes.c_ulong)()
+    if not x.XQueryTree(keys.d, x.XDefaultRootWindow(keys.d), ctypes.byref(root), ctypes.byref(parent),
+                        ctypes.byref(children), ctypes.byref(n)):  # fmt: skip
+        return 0
+    if children:
+        x.XFree(children)
+    return n.value
 
 
 def test_experiment_with_a_person_at_the_keyboard(gl, small_scenario, tmp_path):
@@ -19,20 +43,41 @@ def test_experiment_with_a_person_at_the_keyboard(gl, small_scenario, tmp_path):
         "phases: [{name: baseline, system: none, duration_s: 3}, {name: system_A, system: A, duration_s: 3},"
         " {name: system_B, system: B, duration_s: 3}]\n"
         "participants: [{id: P1, profile: daily_commuter}]\n"
-        f"run: {{scenario: {{map: {osm}, demand: {{density: low}}}}, ego: {{depart_s: 0.0, lead_vehicle: false}},"
+        f"run: {{scenario: {{map: {osm}, demand: {{density: low}}}}, ego: {{depart_s: 0.0}},"
         " log: {scene_every_steps: 0}}\n"
     )
     xs = XServer()
+    keys = None
     try:
-        env = {**os.environ, "DISPLAY": xs.display, "SDL_VIDEODRIVER": "x11", "MUJOCO_GL": "egl"}
-        proc = subprocess.run([sys.executable, "-m", "cosim.cli", "experiment", str(cfg), "--participant-driver",
-                               "keyboard", "--out", str(tmp_path / "out"), "--quiet"],
-                              env=env, capture_output=True, text=True, timeout=180)  # fmt: skip
+        env = {**os.environ, "DISPLAY": xs.display, "SDL_VIDEODRIVER": "x11", "MUJOCO_GL": "egl",
+               "SDL_VIDEO_WINDOW_POS": "0,0"}  # fmt: skip
+        proc = subprocess.Popen([sys.executable, "-m", "cosim.cli", "experiment", str(cfg), "--participant-driver",
+                                 "keyboard", "--out", str(tmp_path / "out"), "--quiet"],
+                                env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+        keys = XKeys(xs.display)
+        deadline = time.monotonic() + 180.0
+        while proc.poll() is None and time.monotonic() < deadline and not _windows(keys):
+            time.sleep(0.1)
+        # the window is up (the scenario is cached: the real-time phases start within a second or two): the
+        # person holds the throttle for 4 s, with the pointer over the window (focus follows it)
+        until = time.monotonic() + 4.0
+        while proc.poll() is None and time.monotonic() < until:
+            keys.pointer(160, 90)
+            keys.key("Up", True)
+            time.sleep(0.2)
+        keys.key("Up", False)
+        _, stderr = proc.communicate(timeout=180)
     finally:
+        if keys is not None:
+            keys.close()
         xs.stop()
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.returncode == 0, stderr[-3000:]
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     (part,) = summary["participants"]
     assert [p["phase"] for p in part["phases"]] == ["baseline", "system_A", "system_B"]
     assert part["run"]["wall_s"] >= 8.0  # paced to the wall clock: three 3-s phases take real time
     assert (tmp_path / "out" / "P1" / "timegap.csv").exists()
+    ego = read(tmp_path / "out" / "P1" / "run.mcap", topics=["/ego/state"]).topics["/ego/state"]
+    assert np.nanmax(ego["throttle"]) > 0.8  # the key reached the car ...
+    moved = float(np.hypot(ego["x_m"][-1] - ego["x_m"][0], ego["y_m"][-1] - ego["y_m"][0]))
+    assert moved > 20.0, moved  # ... and the car drove off with it
