@@ -137,6 +137,7 @@ def test_ego_write_back_makes_a_sumo_follower_brake(tmp_path):
         bridge.close()
 
 
+@pytest.mark.slow
 def test_an_ego_standing_for_minutes_is_never_teleported_away():
     """SUMO teleports a car that waits longer than time-to-teleport (120 s); a participant who stops must
     stay in the traffic (the ego's vType disables it)."""

@@ -19,6 +19,9 @@ from cosim.scenario.demand import DENSITY_NAMES
 ROOT = Path(__file__).resolve().parents[2]
 
 
+pytestmark = pytest.mark.slow  # 600 s of traffic per density on the full default map
+
+
 @pytest.mark.parametrize("density", DENSITY_NAMES)
 def test_600s_of_each_density_on_the_default_map(tmp_path, density):
     scn = build_scenario(ROOT / "configs" / "maps" / "krems.osm.gz", tmp_path / density, density=density, seed=1,

@@ -20,6 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.own_process
 
 
+@pytest.mark.slow
 def test_scripted_driver_300s_on_the_default_map(tmp_path):
     """No collision, never off the road, no red-light violation, lane keeping within 0.3 m on average; SUMO
     keeps the ego's planned route (its lights, right of way and foes depend on it)."""

@@ -92,6 +92,7 @@ def test_compare_detects_a_drifted_trace(short_experiment, tmp_path):
     assert not compare_files(out / "P1" / "timegap.csv", bad).ok
 
 
+@pytest.mark.slow
 @pytest.mark.own_process
 def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     """With no shadowing, the time gap system B shows from CAMs matches SUMO's SSM TGAP for the same pair:

@@ -17,6 +17,9 @@ from cosim.scenario.demand import HAIRPIN_DEG
 ROOT = Path(__file__).resolve().parents[2]
 
 
+pytestmark = pytest.mark.slow  # full builds of three real maps
+
+
 @pytest.fixture(scope="module")
 def reports(tmp_path_factory):
     """Build reports by map name, each map built on first use: a missing map (Helsinki is not shipped in

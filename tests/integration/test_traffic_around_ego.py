@@ -26,6 +26,7 @@ def _config(seed: int = 7, **extra):
                                     "ego.physics": "sumo", "vanet": None, **extra})  # fmt: skip
 
 
+@pytest.mark.slow
 def test_traffic_stays_around_the_ego_at_the_target_density_and_is_generated_ahead():
     with Simulation(_config()) as sim:
         w = sim.world
@@ -66,6 +67,7 @@ def test_traffic_stays_around_the_ego_at_the_target_density_and_is_generated_ahe
     assert np.median(spawn_dist) > 150.0
 
 
+@pytest.mark.slow
 def test_traffic_around_the_ego_is_deterministic():
     def trace(seed):
         with Simulation(_config(seed)) as sim:

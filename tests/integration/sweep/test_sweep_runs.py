@@ -94,6 +94,7 @@ def test_local_sweep_of_four_runs(four):
     assert all(p.stat().st_size > 5000 for p in result.plots)
 
 
+@pytest.mark.slow
 def test_same_sweep_on_a_local_ray_instance(four, tmp_path):
     pytest.importorskip("ray", reason="Ray is not installed (pip install 'cosim[ray]')")
     from cosim.sweep import RayBackend
@@ -221,6 +222,7 @@ def _worker_pids(pid: int) -> list[int]:
     return pids
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/task").exists(), reason="needs /proc to find the worker process")
 def test_a_killed_worker_is_survived(tmp_path):
     body = "name: kill\nbase: base.yaml\nseeds: [1, 2]\n"
