@@ -20,8 +20,9 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(PY) -m pytest -q -ra -m 'not slow'
 
+# --force: a second `make experiment` replaces results/paper (cosim refuses to overwrite a run without it)
 experiment: $(STAMP)
-	$(VENV)/bin/cosim experiment configs/experiment.yaml --clip
+	$(VENV)/bin/cosim experiment configs/experiment.yaml --clip --force
 
 bench: $(STAMP)
 	$(PY) -m bench.run_all
