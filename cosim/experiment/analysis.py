@@ -139,3 +139,92 @@ def plot_timegap(cols: dict[str, np.ndarray], path: Path, title: str) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+# -- what the numbers rest on ------------------------------------------------------------------------------
+# The scripted participants' responses to the assistance systems are assumptions (cosim/driver/profiles.py):
+# every number of a phase with system A or B depends on these profile parameters, a baseline phase on none.
+RESPONSE_PARAMETERS = {
+    "A": ("a_brake_prob", "a_brake_decel_mps2", "a_brake_duration_s", "a_gap_increase_s", "a_gap_max_s",
+          "a_gap_decay_s", "a_refractory_s"),
+    "B": ("b_target_gap_s", "b_compliance", "b_adapt_time_s", "b_warning_gain", "b_none_gain", "b_forget_time_s"),
+}  # fmt: skip
+RESPONSE_SWEEP = "configs/sweeps/driver_response.yaml"
+# per-phase numbers that follow from how the driver drives (the rest describe the traffic or the radio)
+DRIVER_DEPENDENT = ("time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
+                    "advisories", "hard_braking_events", "ego_collisions", "min_ttc_s")  # fmt: skip
+
+
+def response_assumptions(exp) -> dict:
+    """Which summary numbers rest on the assumed responses to systems A and B, and the values assumed for
+    each scripted participant (profile and ``run.ego.driver.profile_overrides`` of the experiment)."""
+    from cosim.driver import DriverConfig
+
+    run = exp.run if isinstance(exp.run, dict) else {}
+    driver = (run.get("ego") or {}).get("driver") or {}
+    overrides = dict(driver.get("profile_overrides") or {})
+    scripted = driver.get("kind", "scripted") == "scripted"
+    values: dict[str, dict[str, float]] = {}
+    for part in exp.participants:
+        if not scripted:
+            continue
+        prof = DriverConfig(profile=part.profile, profile_overrides=overrides).resolved_profile()
+        values[part.id] = {
+            name: getattr(prof, name) for names in RESPONSE_PARAMETERS.values() for name in names
+        }
+    systems = sorted({p.system for p in exp.phases if p.system in RESPONSE_PARAMETERS})
+    return {
+        "scripted_participants": sorted(values),
+        "note": (
+            "The scripted participants' responses to systems A and B are assumptions (cosim/driver/"
+            "profiles.py), not measured behaviour. In every phase with system A or B the driver-dependent "
+            "numbers (and so every A/B-versus-baseline and A-versus-B comparison) rest on them; baseline "
+            "phases do not. " + RESPONSE_SWEEP + " shows how the A/B difference moves with them."
+            if values
+            else "No scripted participant: the responses are the people's own."
+        ),
+        "parameters": {s: list(RESPONSE_PARAMETERS[s]) for s in systems},
+        "profile_overrides": {
+            k: v for k, v in overrides.items() if any(k in ns for ns in RESPONSE_PARAMETERS.values())
+        },  # fmt: skip
+        "values": values,
+        "driver_dependent_numbers": list(DRIVER_DEPENDENT),
+        "sweep": RESPONSE_SWEEP,
+    }
+
+
+def mark_assumed(results: list[dict], across: list[dict], assumptions: dict) -> None:
+    """Give every phase (and every across-participants row) ``rests_on_assumed_response``: the profile
+    parameters its driver-dependent numbers depend on ([] for the baseline or a person at the wheel)."""
+    scripted = set(assumptions["scripted_participants"])
+    for r in results:
+        for ph in r["phases"]:
+            system = ph.get("system")
+            assumed = r["participant"] in scripted and system in RESPONSE_PARAMETERS
+            ph["rests_on_assumed_response"] = list(RESPONSE_PARAMETERS[system]) if assumed else []
+    for row in across:
+        assumed = bool(scripted) and row.get("system") in RESPONSE_PARAMETERS
+        row["rests_on_assumed_response"] = list(RESPONSE_PARAMETERS[row["system"]]) if assumed else []
+
+
+def assumptions_markdown(assumptions: dict) -> list[str]:
+    """The summary.md section on the assumed responses."""
+    lines = ["## Assumptions: the participants' responses to systems A and B", "", assumptions["note"], ""]
+    values = assumptions["values"]
+    if not values:
+        return lines
+    systems = [s for s in ("A", "B") if s in assumptions["parameters"]]
+    lines += [
+        f"The rows of system {' and '.join(systems)} phases (`rests_on_assumed_response` in summary.json) "
+        "depend on these values:",
+        "",
+    ]
+    ids = list(values)
+    lines += ["| system | parameter | " + " | ".join(ids) + " |", "|---|---|" + "---|" * len(ids)]
+    for s in systems:
+        for name in assumptions["parameters"][s]:
+            lines.append(f"| {s} | `{name}` | " + " | ".join(f"{values[i][name]:g}" for i in ids) + " |")
+    lines += ["", "Numbers that rest on them in those rows: " + ", ".join(assumptions["driver_dependent_numbers"])
+              + ". Vary them with `ego.driver.profile_overrides` (a run config, or `run:` of the experiment "
+              f"config) or run `cosim sweep {assumptions['sweep']}`.", ""]  # fmt: skip
+    return lines

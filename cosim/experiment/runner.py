@@ -10,7 +10,15 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from cosim.experiment.analysis import phase_summary, plot_timegap, timegap_columns, write_timegap_csv
+from cosim.experiment.analysis import (
+    assumptions_markdown,
+    mark_assumed,
+    phase_summary,
+    plot_timegap,
+    response_assumptions,
+    timegap_columns,
+    write_timegap_csv,
+)
 from cosim.experiment.protocol import ExperimentConfig, participant_config, start_time_s
 
 SUMMARY_TOPICS = ["/adas/state", "/ego/state", "/vanet/rx", "/events"]  # what timegap.csv and the summary use
@@ -148,6 +156,8 @@ def _write_summary(exp: ExperimentConfig, results: list[dict], out_dir: Path, t0
     simulated = sum(r["run"]["simulated_s"] if "simulated_s" in r["run"] else 0 for r in results)
     summary = {"experiment": exp.name, "participants": results, "across": across_participants(results),
                "wall_s": round(wall, 1), "jobs": jobs, "simulated_s": simulated}  # fmt: skip
+    summary["assumptions"] = response_assumptions(exp)  # which numbers rest on assumed responses to A and B
+    mark_assumed(results, summary["across"], summary["assumptions"])
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     (out_dir / "summary.md").write_text(summary_markdown(summary))
     return summary
@@ -187,6 +197,9 @@ def summary_markdown(summary: dict) -> str:
              f"{summary['wall_s']:.0f} s wall ({summary['jobs']} processes).", "",
              "Time gap (TG) = ground truth to the vehicle ahead while following (TG < 10 s); warnings = onsets of "
              "the red level (system B) or of the perceived 'keep distance' display (system A).", ""]  # fmt: skip
+    if summary.get("assumptions", {}).get("values"):
+        lines += ["The system A and B rows rest on assumed driver responses, not measured ones: see "
+                  "*Assumptions* at the end.", ""]  # fmt: skip
     for r in summary["participants"]:
         lines += [f"## {r['participant']} ({r['profile']}), order: {' > '.join(r['order'])}", "",
                   "| " + " | ".join(h for _, h in _COLS) + " |", "|" + "---|" * len(_COLS)]  # fmt: skip
@@ -200,4 +213,6 @@ def summary_markdown(summary: dict) -> str:
         lines.append(f"| {row['system']} | {row['n']} | " + " | ".join(_cell(row[k]) for k in (
             "time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
             "hard_braking_events", "ego_collisions", "min_ttc_s", "v2v_pdr_to_leader")) + " |")  # fmt: skip
+    if summary.get("assumptions"):
+        lines += ["", *assumptions_markdown(summary["assumptions"])]
     return "\n".join(lines) + "\n"
