@@ -84,6 +84,9 @@ def _run(args) -> int:
             stats = sim.run()
     stats["log"] = str(out / "run.mcap")
     print(json.dumps(stats) if args.quiet else "\n".join(f"{k}: {v}" for k, v in stats.items()))
+    health = stats["health"]
+    if health["status"] != "ok":  # the run's numbers stand on a drive that did not happen as planned
+        print(f"cosim: warning: degraded drive: {'; '.join(health['problems'])}", file=sys.stderr)
     return _signal_exit if stats["interrupted"] else 0
 
 
@@ -127,6 +130,14 @@ def _experiment(args) -> int:
     if args.clip:
         _clip(out / exp.participants[0].id)
     print(f"results in {out}/ ({summary['wall_s']:.0f} s wall for {summary['simulated_s']:.0f} simulated s)")
+    from cosim.experiment.runner import degraded_phases, phases_without_timegap
+
+    for line in degraded_phases(summary):
+        print(f"cosim: warning: degraded drive: {line}", file=sys.stderr)
+    empty = phases_without_timegap(summary)
+    if empty:
+        print(f"cosim: error: no time-gap data in {', '.join(empty)}", file=sys.stderr)
+        return 1
     return 0
 
 

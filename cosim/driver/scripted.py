@@ -46,7 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.driver.base import Controls, Driver, Percept
-from cosim.driver.gap_acceptance import critical_gap_s
+from cosim.driver.gap_acceptance import critical_gap_s, follow_up_s
 from cosim.driver.profiles import DriverProfile
 
 _G = 9.81  # [m/s^2]
@@ -58,6 +58,7 @@ _GIVE_WAY_COMMIT_M = 2.0  # [m] this close to a clear give-way line the driver c
 _STOPPED_MPS = 0.1  # [m/s] "full stop" at a stop sign
 _CREEP_MPS = 1.0  # [m/s] slower than this near a yield line counts as waiting there
 _WAIT_ZONE_M = 15.0  # [m] ... within this distance of the line (a queue in front of it included)
+_FOLLOW_THROUGH_M = 12.0  # [m] a leader whose rear is at most this far past the line has just entered
 _LEADER_ACCEL_SMOOTH_S = 0.3  # [s] smoothing of the perceived leader acceleration
 _MIN_TIME_GAP_S = 0.3  # [s] the desired time gap never drops below this
 _B_MAX_ADD_S = 3.0  # [s]
@@ -491,6 +492,9 @@ class ScriptedDriver(Driver):
         if v < _CREEP_MPS and to_stop < _WAIT_ZONE_M and self._sign_phase != "go":
             self._sign_waited_s += dt_s
         needed = critical_gap_s(d.movement, self._sign_waited_s, prof.critical_gap_factor, prof.time_to_impatience_s)
+        if d.leader and 0.0 < d.gap - d.sign_d < _FOLLOW_THROUGH_M and dist_m < _WAIT_ZONE_M:
+            # queued right behind a vehicle that has just entered the junction: the follow-up headway
+            needed = min(needed, follow_up_s(d.movement, prof.critical_gap_factor))
         self._yielding = d.conflict or d.jgap - age < needed
         if d.sign == "stop":
             if self._sign_phase == "approach":

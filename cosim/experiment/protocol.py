@@ -121,7 +121,7 @@ def participant_config(exp: ExperimentConfig, index: int, base: Path) -> RunConf
     run["name"] = f"{exp.name}-{part.id}"
     run["seed"] = exp.seed
     ego = run.setdefault("ego", {})
-    ego.setdefault("depart_s", 5.0)
+    ego.setdefault("depart_s", 0.0)
     ego["driver_seed"] = index + 1
     driver = ego.setdefault("driver", {})
     driver.setdefault("kind", "scripted")
@@ -135,5 +135,5 @@ def participant_config(exp: ExperimentConfig, index: int, base: Path) -> RunConf
 
 
 def start_time_s(exp: ExperimentConfig, depart_s: float) -> float:
-    """The protocol starts when the ego departs (3 s after the lead vehicle)."""
-    return depart_s + 3.0
+    """The protocol starts when the ego (and the lead ahead of it) are placed on the road."""
+    return depart_s

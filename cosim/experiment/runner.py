@@ -29,12 +29,17 @@ class PhaseSchedule:
 
     def __init__(self, sim, phases, start_s: float):
         self.sim = sim
-        self.bounds = []
-        t = start_s
-        for p in phases:
-            self.bounds.append((t, t + p.duration_s, p))
-            t += p.duration_s
+        self.bounds = self.bounds_of(phases, start_s)
         sim.add_hook("sumo", self)
+
+    @staticmethod
+    def bounds_of(phases, start_s: float) -> list[tuple[float, float, object]]:
+        """(start, end, phase) of each phase in simulated time."""
+        bounds, t = [], start_s
+        for p in phases:
+            bounds.append((t, t + p.duration_s, p))
+            t += p.duration_s
+        return bounds
 
     def __call__(self, sim) -> None:
         adas = sim.adas
@@ -61,8 +66,10 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
     t_wall = time.perf_counter()
 
     kept: dict[str, list] = {}  # the summary's topics: the log appends their messages during the run
+    health = []  # the run's DriveHealth, judged per phase below
 
     def setup(sim) -> None:
+        health.append(sim.health)
         PhaseSchedule(sim, order, start)
         kept.update(sim.mcap.keep(SUMMARY_TOPICS))
         sim.mcap.metadata("experiment", {"name": exp.name, "participant": part.id, "profile": part.profile,
@@ -89,8 +96,20 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
     write_timegap_csv(cols, pdir / "timegap.csv")
     title = f"{exp.name}: participant {part.id} ({part.profile}), order {' > '.join(p.name for p in order)}"
     plot_timegap(cols, pdir / "timegap.png", title)
+    phases = phase_summary(log, cols, start)
+    bounds = PhaseSchedule.bounds_of(order, start)
+    for ph in phases:
+        t0, t1 = next((a, b) for a, b, p in bounds if p.name == ph["phase"])
+        rep = health[0].report(t0, t1) if health and health[0] is not None else None
+        ph["health"] = rep
+        if rep is not None:  # the following task as the drive health sees it (a queue behind the leader counts)
+            ph["following_share"] = rep["following_share"]
+            ph["lead_leader_share"] = rep["lead_leader_share"]
+    for p in order:  # a phase the protocol has but the log does not: no time-gap data at all
+        if not any(ph["phase"] == p.name for ph in phases):
+            phases.append({"phase": p.name, "system": p.system, "duration_s": 0.0, "health": None})
     return {"participant": part.id, "profile": part.profile, "order": [p.name for p in order],
-            "phases": phase_summary(log, cols, start), "run": stats}  # fmt: skip
+            "phases": phases, "run": stats}  # fmt: skip
 
 
 # What every participant's process needs, imported once in the fork server instead of once per process
@@ -161,6 +180,23 @@ def _write_summary(exp: ExperimentConfig, results: list[dict], out_dir: Path, t0
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
     (out_dir / "summary.md").write_text(summary_markdown(summary))
     return summary
+
+
+def phases_without_timegap(summary: dict) -> list[str]:
+    """'P1 system_B' for every phase with no time-gap data (the ego never followed anyone there)."""
+    return [f"{r['participant']} {ph['phase']}" for r in summary["participants"] for ph in r["phases"]
+            if ph.get("time_gap_mean_s") is None]  # fmt: skip
+
+
+def degraded_phases(summary: dict) -> list[str]:
+    """'P1 system_B: reason; reason' for every phase whose drive health is not ok."""
+    out = []
+    for r in summary["participants"]:
+        for ph in r["phases"]:
+            h = ph.get("health")
+            if h is None or h["status"] != "ok":
+                out.append(f"{r['participant']} {ph['phase']}: " + ("; ".join(h["problems"]) if h else "no data"))
+    return out
 
 
 def across_participants(results: list[dict]) -> list[dict]:

@@ -24,6 +24,9 @@ TLS_NEAR_M = 150.0  # a light nearer than this is looked up every step, farther 
 TLS_REFRESH_S = 1.0
 YIELD_LOOK_M = 80.0  # the gap at a junction where the ego must yield is judged from this close on [m]
 FOE_RADIUS_M = 200.0  # priority vehicles farther from the conflict than this do not count (paper IV.B)
+# a priority vehicle that has stood this long is waiting itself (queued, yielding, blocked): a driver who
+# sees it stand goes, as SUMO's junction model (which counts approaching foes only) does
+FOE_WAITING_S = 3.0
 # SUMO is given the ego's route this far ahead, renewed at half of it: enough for its next light (read
 # within 300 m) and right of way. It matches every pose against each edge of the route it holds (the ones
 # passed too, which it keeps), so the whole route ahead would cost up to 0.3 ms a step.
@@ -40,6 +43,19 @@ _SIGN_OF_STATE = {"s": "stop", "w": "stop", "m": "give_way", "=": "give_way"}
 _TLS = {"g": "g", "G": "g", "y": "y", "Y": "y", "u": "y", "r": "r", "R": "r", "s": "r"}
 # a green without priority ('g': a permissive left turn across oncoming traffic) is a yield line as well
 _TLS_YIELD = "g"
+
+
+def priority_gap_s(sim, vid: str, line_dist_m: float) -> float:
+    """Time until the first vehicle ``vid`` must yield to at its next junction reaches the conflict [s]
+    (SUMO's right of way; inf: none within FOE_RADIUS_M)."""
+    w = sim.world
+    gap = math.inf
+    for foe, _, foe_dist, standing_s in sim.bridge.yield_foes(vid, line_dist_m + 5.0):
+        slot = w.slot_of.get(foe)
+        if slot is None or foe_dist > FOE_RADIUS_M or standing_s >= FOE_WAITING_S:
+            continue
+        gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
+    return gap
 
 
 class EgoController:
@@ -210,22 +226,9 @@ class EgoController:
                 kw.update(sign_kind=kind, sign_dist_m=dist, sign_id=line.junction,
                           junction_movement=movement_of(line.direction, line.into_roundabout, permissive))  # fmt: skip
                 if dist <= YIELD_LOOK_M:
-                    kw["junction_gap_s"] = self._priority_gap_s(sim, dist)
+                    kw["junction_gap_s"] = priority_gap_s(sim, EGO_ID, dist)
                 break
         return kw
-
-    @staticmethod
-    def _priority_gap_s(sim, line_dist_m: float) -> float:
-        """Time until the first vehicle the ego must yield to at the next junction reaches the conflict [s]
-        (inf: none within FOE_RADIUS_M)."""
-        w = sim.world
-        gap = math.inf
-        for foe, _, foe_dist in sim.bridge.yield_foes(EGO_ID, line_dist_m + 5.0):
-            slot = w.slot_of.get(foe)
-            if slot is None or foe_dist > FOE_RADIUS_M:
-                continue
-            gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
-        return gap
 
     def _rebuild_path(self) -> None:
         """The route was extended: the path again from the whole route, the projection kept."""

@@ -3,10 +3,14 @@ considerate human leader, so the participant spends the drive following it.
 
 - It starts 20 m ahead of the ego at the first step (``Simulation._place_ego``) and keeps to the ego's
   route, which ``cosim.phases.route`` extends for both as they drive.
-- It drives a little below the limit (``sumo_bridge.LEAD_SPEED_FACTOR``) and waits for the participant:
-  beyond ``wait_beyond_m`` of gap along the route it drives slower than the ego until the gap has closed to
-  60 % of that (after a red light that stopped only the ego, a slow participant, a give-way the ego had to
-  wait at).
+- It drives a little below the limit (``sumo_bridge.LEAD_SPEED_FACTOR``) and never lets the gap along
+  the route grow beyond ``wait_beyond_m``: its speed is capped at the ego's plus (wait_beyond_m - gap) /
+  ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
+  (after a red light that stopped only the ego, behind a slow participant).
+- At a line where it must yield (stop or give-way sign, minor road, priority to the right, roundabout
+  entry) it waits until the ego has closed up behind it and the priority traffic leaves a gap for both:
+  the critical gap of the movement plus the follow-up headway the ego needs behind it (HCM 2010,
+  ``cosim.driver.gap_acceptance``; shrinking with the waiting time as the ego's own does).
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
   whether the ego, at its present speed, reaches the stop line before the green ends (the programme says
   when); if not, it stops at the line itself and both wait for the next green.
@@ -19,21 +23,26 @@ from __future__ import annotations
 
 import math
 
+from cosim.driver.gap_acceptance import critical_gap_s, follow_up_s, movement_of
+from cosim.phases.ego import priority_gap_s
 from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoEvent
 
-RESUME_SHARE = 0.6  # the waiting lead drives on freely once the gap is below this share of wait_beyond_m
-WAIT_SLOWER_MPS = 2.0  # while waiting it drives this much slower than the ego [m/s]
+CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this time [s]
+YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
+EGO_CLOSE_M = 15.0  # ... until the ego is at most this far behind it [m]
 LIGHT_DECIDE_M = 70.0  # the lead decides whether to stop for the ego's sake this far before a light [m]
 LIGHT_MARGIN_S = 1.5  # the ego must reach the stop line this long before the green ends [s]
 STOP_DECEL_MPS2 = 2.0  # the lead's planned deceleration when it stops for the ego at a green [m/s^2]
 STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
+YIELD_STATES = "sw=m"  # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor
+LEAD_FOLLOWER_GAP_FACTOR = 1.2  # the follow-up headway the lead leaves the ego: a cautious participant's
 
 
 class LeadVehicle:
     def __init__(self, sim, wait_beyond_m: float):
         self.sim = sim
         self.wait_beyond_m = wait_beyond_m
-        self.waiting = False
+        self.waiting = False  # the lead slows down or stands for the ego
         self.cut_ins = 0
         self.gap_m = math.nan  # along the route, the lead's rear to the ego's front [m]
         self._capped = False
@@ -41,6 +50,7 @@ class LeadVehicle:
         self._stop_at_light = False  # ... and whether the lead stops there for the ego
         self._lead_s: float | None = None  # the lead's rear on the ego's route path [m]
         self._ego_leader: str | None = None
+        self._yield_wait: tuple | None = None  # (line key, time the lead came within YIELD_HOLD_M of it)
         sim.add_hook("driver", self.step)
 
     def step(self, sim) -> None:
@@ -53,17 +63,12 @@ class LeadVehicle:
         v_ego = float(w.speed_mps[ego])
         caps = []
         if self.wait_beyond_m > 0:
-            if self.gap_m > self.wait_beyond_m:
-                self.waiting = True
-            elif self.waiting and self.gap_m < RESUME_SHARE * self.wait_beyond_m:
-                self.waiting = False
-            if self.waiting:  # slower than the ego, so it closes up; standing while the ego stands
-                caps.append(max(0.0, v_ego - WAIT_SLOWER_MPS))
-        light_cap = self._light_cap(sim, v_ego)
-        if light_cap is not None:
-            caps.append(light_cap)
-        if caps:
-            sim.bridge.cap_speed(LEAD_ID, min(caps))
+            caps.append(max(0.0, v_ego + (self.wait_beyond_m - self.gap_m) / CLOSE_TIME_S))
+        holds = [c for c in (self._light_cap(sim, v_ego), self._yield_cap(sim)) if c is not None]
+        self.waiting = bool(holds) or (self.wait_beyond_m > 0 and self.gap_m > self.wait_beyond_m)
+        cap = min(caps + holds) if caps or holds else math.inf
+        if cap < sim.bridge.lane_speed_limit(LEAD_ID):
+            sim.bridge.cap_speed(LEAD_ID, cap)
             self._capped = True
         elif self._capped:
             sim.bridge.cap_speed(LEAD_ID, None)
@@ -98,6 +103,27 @@ class LeadVehicle:
                 green_left = sim.bridge.tls_green_left_s(tls_id, link)
                 self._stop_at_light = ego_to_line / max(v_ego, 1.0) + LIGHT_MARGIN_S > green_left
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
+            return None
+        return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
+
+    def _yield_cap(self, sim) -> float | None:
+        """Speed cap that holds the lead at a yield line until the ego is right behind it and the gap in the
+        priority traffic suits both, else None."""
+        link = sim.bridge.next_link(LEAD_ID)
+        if link is None:
+            self._yield_wait = None
+            return None
+        state, dist, direction = link
+        if state not in YIELD_STATES or dist > YIELD_HOLD_M:
+            self._yield_wait = None
+            return None
+        t = sim.world.t_s
+        if self._yield_wait is None or self._yield_wait[0] != link[:1] + (round(dist / 50),):
+            self._yield_wait = (link[:1] + (round(dist / 50),), t)
+        waited = t - self._yield_wait[1]
+        movement = movement_of(direction)
+        needed = critical_gap_s(movement, waited) + follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
+        if self.gap_m <= EGO_CLOSE_M and priority_gap_s(sim, LEAD_ID, dist) >= needed:
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 

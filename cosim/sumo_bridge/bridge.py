@@ -397,12 +397,28 @@ class SumoBridge:
     def vehicle_ids(self) -> list[str]:
         return list(self.sumo.vehicle.getIDList())
 
-    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float]]:
-        """(foe id, the ego's distance to the conflict, the foe's [m]) for the vehicles ``vid`` must yield to
-        at the junctions within ``lookahead_m`` on its route (SUMO's own right-of-way model)."""
-        foes = self.sumo.vehicle.getJunctionFoes(vid, lookahead_m)
+    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float, float]]:
+        """(foe id, the ego's distance to the conflict, the foe's [m], how long the foe has been standing
+        [s]) for the vehicles ``vid`` must yield to at the junctions within ``lookahead_m`` on its route
+        (SUMO's own right-of-way model)."""
+        veh = self.sumo.vehicle
+        foes = veh.getJunctionFoes(vid, lookahead_m)
         # tuples: (foeId, egoDist, foeDist, egoExitDist, foeExitDist, egoLane, foeLane, egoResponse, foeResponse)
-        return [(f[0], f[1], f[2]) for f in foes if f[7]]
+        return [(f[0], f[1], f[2], veh.getWaitingTime(f[0])) for f in foes if f[7]]
+
+    def next_link(self, vid: str) -> tuple[str, float, str] | None:
+        """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None
+        inside a junction or at the end of its route."""
+        veh = self.sumo.vehicle
+        lane = veh.getLaneID(vid)
+        if not lane or lane.startswith(":"):
+            return None
+        links = veh.getNextLinks(vid)
+        if not links:
+            return None
+        # (approachedLane, hasPrio, isOpen, hasFoe, approachedInternal, state, direction, length)
+        first = links[0]
+        return first[5], self.sumo.lane.getLength(lane) - veh.getLanePosition(vid), first[6]
 
     def next_tls(self, vid: str) -> tuple[str, int, float, str] | None:
         """(tls id, link index, distance to the stop line [m], state char) of the next light, if any."""
