@@ -135,6 +135,15 @@ def map_entities(scenario_dir: str | Path) -> list[dict]:
     return out
 
 
+def signal_lamps(net) -> list[tuple[str, int, np.ndarray]]:
+    """(traffic light id, link index, (3, 3) lamp centres red / yellow / green in the network frame) of
+    every signalised approach, as the 3D view places its lamps; ``/scene`` lights the one SUMO shows."""
+    from cosim.world3d.scene import _traffic_lights
+
+    approaches, _, _ = _traffic_lights(net, np.zeros(2))
+    return [(a.tls_id, a.link_index, np.round(a.lamp_pos, 3)) for a in approaches]
+
+
 def map_scene_update(scenario_dir: str | Path) -> dict:
     """The ``/map`` message: ``foxglove.SceneUpdate`` of :func:`map_entities`."""
     return {"deletions": [], "entities": map_entities(scenario_dir)}

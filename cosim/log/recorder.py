@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from cosim.log.map_scene import map_scene_update
+from cosim.log.map_scene import map_scene_update, signal_lamps
 from cosim.log.schemas import TOPIC_SCHEMAS
 from cosim.sumo_bridge.bridge import EGO_ID
 
@@ -29,9 +29,13 @@ class Recorder:
         self.cfg = sim.config.log
         self._tls_state: dict[str, str] = {}
         self._channels: set[str] = set()
+        if getattr(sim, "health", None) is not None:  # cosim.sim writes /health itself, when the run closes
+            self._channel("/health")
+        self._lamps: list[tuple[str, int, np.ndarray]] = []
         if self.cfg.scene_every_steps:
             self._channel("/map")
             self.log.write_deferred("/map", 0.0, map_scene_update, str(sim.scenario.dir))
+            self._lamps = signal_lamps(sim.net)  # the lamps /scene lights (the poles are on /map)
 
     def _channel(self, topic: str) -> None:
         """Register ``topic`` with its declared schema before its first message."""
@@ -96,8 +100,15 @@ class Recorder:
             if ego >= 0 and self.cfg.scene_radius_m > 0:
                 d = np.hypot(cx[idx] - cx[ego], cy[idx] - cy[ego])
                 idx = idx[d <= self.cfg.scene_radius_m]
+            state = dict(zip(ids, states, strict=True))
+            lamps = []
+            for tls, link, pos in self._lamps:
+                st = state.get(tls, "")
+                lamp = _SUMO_LAMP.get(st[link]) if link < len(st) else None
+                if lamp is not None:
+                    lamps.append((pos[_LAMP_SLOT[lamp]], lamp))
             log.write_deferred("/scene", t, _scene, t, [w.ids[i] for i in idx.tolist()], cx[idx], cy[idx],
-                               w.heading_deg[idx], w.length_m[idx], w.width_m[idx], w.is_ego[idx])  # fmt: skip
+                               w.heading_deg[idx], w.length_m[idx], w.width_m[idx], w.is_ego[idx], lamps)  # fmt: skip
 
 
 def _ego_frame(t: float, w, ego: int) -> dict:
@@ -123,8 +134,9 @@ def _traffic(t, step, ids, slots, x, y, heading, speed, accel, edges, lane_index
     }  # fmt: skip
 
 
-def _scene(t: float, ids, cx, cy, heading, length, width, is_ego) -> bytes:
-    """The ``foxglove.SceneUpdate`` payload: the given vehicles (front-bumper centre ``cx``, ``cy``) as boxes.
+def _scene(t: float, ids, cx, cy, heading, length, width, is_ego, lamps=()) -> bytes:
+    """The ``foxglove.SceneUpdate`` payload: the given vehicles (front-bumper centre ``cx``, ``cy``) as boxes,
+    and the lit traffic-light lamps (``lamps``: (position (3,), 'r' | 'y' | 'g')) as spheres of one entity.
 
     Encoded from templates rather than by ``json.dumps`` over a dict per vehicle (a quarter of the cost);
     the bytes are the same as the dict form would give (tests/unit/test_log_payloads.py checks it).
@@ -144,6 +156,9 @@ def _scene(t: float, ids, cx, cy, heading, length, width, is_ego) -> bytes:
         strict=True,
     )
     entities = ",".join([_ENTITY % (stamp, *c) for c in cols])
+    if lamps:
+        spheres = ",".join([_LAMP % (*_json_floats([float(v) for v in p]), _LAMP_COLOR[k]) for p, k in lamps])
+        entities += ("," if entities else "") + _LAMPS % (stamp, spheres)
     return f'{{"deletions":[{{"timestamp":{stamp},"type":1,"id":""}}],"entities":[{entities}]}}'.encode()
 
 
@@ -157,6 +172,22 @@ _ENTITY = (
     '"orientation":{"x":0.0,"y":0.0,"z":%s,"w":%s}},"size":{"x":%s,"y":%s,"z":1.5},"color":%s}],'
     '"spheres":[],"cylinders":[],"lines":[],"triangles":[],"texts":[],"models":[]}'
 )
+
+
+# the lit lamps of every signalised approach: one entity of spheres; fields: stamp, spheres
+_LAMPS = (
+    '{"timestamp":%s,"frame_id":"map","id":"traffic_light_lamps","lifetime":{"sec":0,"nsec":0},'
+    '"frame_locked":false,"metadata":[],"arrows":[],"cubes":[],"spheres":[%s],"cylinders":[],"lines":[],'
+    '"triangles":[],"texts":[],"models":[]}'
+)
+_LAMP = (
+    '{"pose":{"position":{"x":%s,"y":%s,"z":%s},"orientation":{"x":0.0,"y":0.0,"z":0.0,"w":1.0}},'
+    '"size":{"x":0.5,"y":0.5,"z":0.5},"color":%s}'
+)
+_LAMP_COLOR = {"r": '{"r":1.0,"g":0.08,"b":0.05,"a":1.0}', "y": '{"r":1.0,"g":0.65,"b":0.0,"a":1.0}',
+               "g": '{"r":0.1,"g":1.0,"b":0.3,"a":1.0}'}  # fmt: skip
+_SUMO_LAMP = {"r": "r", "R": "r", "s": "r", "y": "y", "Y": "y", "u": "y", "g": "g", "G": "g"}  # 'o'/'O': dark
+_LAMP_SLOT = {"r": 0, "y": 1, "g": 2}
 
 
 def _json_floats(values: list[float], decimals: int | None = None) -> list[str]:

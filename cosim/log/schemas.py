@@ -62,7 +62,8 @@ EGO_STATE = _obj(
      # the ego phase (controls, the physics car, the driver's percept): null before the driver perceived
      "throttle": NUM, "brake": NUM, "steer": NUM, "physics_speed_mps": NUM, "path_offset_m": nullable(NUM),
      "leader_id": nullable(STR), "leader_gap_m": nullable(NUM), "tls_state": nullable(STR),
-     "sign": nullable(STR), "sign_dist_m": nullable(NUM), "junction_conflict": BOOL, "driver_mode": STR},
+     "sign": nullable(STR), "sign_dist_m": nullable(NUM), "junction_conflict": BOOL,
+     "junction_gap_s": nullable(NUM), "driver_mode": STR},
     ("t_s", "step", "id", "x_m", "y_m", "heading_deg", "speed_mps", "accel_mps2", "edge", "lane_index",
      "lane_pos_m", "lateral_offset_m", "on_road"),
     "The ego vehicle, one message per step (SUMO's view of it, plus the MuJoCo ego's controls and percept).",
@@ -148,6 +149,19 @@ ADAS_EVENTS = _obj(
     description="Transitions of what systems A and B show.",
 )  # fmt: skip
 
+# -- the run's own verdict (cosim.health.DriveHealth.report), written once when the run closes ---------------
+HEALTH = _obj(
+    "cosim.Health",
+    {"t_s": NUM, "window_s": NUM, "ego_present_at_s": nullable(NUM), "ego_states": INT, "ego_distance_m": NUM,
+     "longest_standstill_s": NUM, "longest_standstill_not_red_s": NUM, "stalls": INT,
+     "following_share": nullable(NUM), "lead_leader_share": nullable(NUM), "cut_ins": nullable(INT),
+     "collisions": INT, "ego_collisions": INT, "teleports": INT, "vehicles_departed": INT,
+     "teleport_share": NUM, "problems": {"type": "array", "items": {"type": STR}},
+     "status": string_enum("ok", "degraded")},
+    description="The drive's health over the whole run: ego presence and distance, standstills, following, "
+                "cut-ins, collisions, teleports; status 'degraded' with the problems found.",
+)  # fmt: skip
+
 SCENE_UPDATE = foxglove_schemas.stored("foxglove.SceneUpdate")
 FRAME_TRANSFORM = foxglove_schemas.stored("foxglove.FrameTransform")
 
@@ -162,6 +176,7 @@ TOPIC_SCHEMAS: dict[str, dict] = {
     "/vanet/step": VANET_STEP,
     "/adas/state": ADAS_STATE,
     "/adas/events": ADAS_EVENTS,
+    "/health": HEALTH,  # written by cosim.sim when the run closes
     "/map": SCENE_UPDATE,  # the static map, once at t = 0
     "/scene": SCENE_UPDATE,  # the vehicles, every log.scene_every_steps
     "/tf": FRAME_TRANSFORM,  # the ego's frame "ego" in "map", every step (a 3D panel can follow it)

@@ -48,3 +48,23 @@ def test_rx_outcome_is_a_named_enum_and_nullable_fields_accept_null():
             "accel_mps2": 0, "edge": "e", "lane_index": 0, "lane_pos_m": 0, "lateral_offset_m": 0, "on_road": True}  # fmt: skip
     assert ego.is_valid({**base, "leader_id": None, "leader_gap_m": None, "sign": None})
     assert not ego.is_valid({**base, "unknown_field": 1})  # a field added to the log must be declared
+
+
+def test_scene_with_vehicles_and_lit_lamps_is_a_valid_scene_update():
+    import json
+
+    import numpy as np
+
+    from cosim.log.recorder import _scene
+
+    lamps = [(np.array([10.0, 20.0, 2.98]), "r"), (np.array([11.5, 20.0, 2.42]), "g")]
+    data = _scene(3.5, ["scv1", "ego"], np.array([1.0, 2.0]), np.array([3.0, 4.0]), np.array([0.0, 90.0]),
+                  np.array([5.0, 4.5]), np.array([1.8, 1.8]), np.array([False, True]), lamps)  # fmt: skip
+    msg = json.loads(data)
+    jsonschema.validate(msg, schemas.SCENE_UPDATE)
+    assert [e["id"] for e in msg["entities"]] == ["scv1", "ego", "traffic_light_lamps"]
+    spheres = msg["entities"][2]["spheres"]
+    assert [s["pose"]["position"]["z"] for s in spheres] == [2.98, 2.42]
+    assert spheres[0]["color"]["r"] == 1.0 and spheres[1]["color"]["g"] == 1.0
+    only_lamps = json.loads(_scene(0.0, [], *(np.zeros(0),) * 5, np.zeros(0, bool), lamps))
+    assert [e["id"] for e in only_lamps["entities"]] == ["traffic_light_lamps"]
