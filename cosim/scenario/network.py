@@ -11,6 +11,7 @@ that contradict OSM ``turn:lanes`` arrows are removed.
 from __future__ import annotations
 
 import math
+import re
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +19,7 @@ from xml.sax.saxutils import quoteattr
 
 from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
+from cosim.scenario.conflicts import geometric_prohibitions, internal_stop_fixes, turnaround_deletions
 from cosim.scenario.osm import OsmInfo, SignNode
 from cosim.sumo_bridge.tools import ToolRun, run_tool
 
@@ -282,6 +284,23 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
     return files, junction_kind, signed_approaches, sorted(tls_approaches)
 
 
+def junction_fixes(net, net_file: Path, workdir: Path) -> dict:
+    """Append the geometric fixes (see ``cosim.scenario.conflicts``) to pass 2's connection file."""
+    deletions = turnaround_deletions(net)
+    deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
+    prohibitions, pairs = geometric_prohibitions(net_file, deleted)
+    stops, moved = internal_stop_fixes(net_file)
+    con = workdir / "signs.con.xml"
+    body = con.read_text().replace("</connections>\n", "")
+    con.write_text(body + "\n".join(deletions + stops + prohibitions) + "\n</connections>\n")
+    (workdir / "junction_fixes.txt").write_text(
+        "".join(f"{j} {p[0]}->{p[1]} before {q[0]}->{q[1]} ({d} m)\n" for j, p, q, d in pairs)
+        + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
+    )
+    return {"turnarounds_removed": len(deletions), "prohibitions_added": len(prohibitions),
+            "internal_stops_moved": len(moved)}  # fmt: skip
+
+
 def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
     if run.returncode != 0:
         first = run.errors[0] if run.errors else run.log.strip().splitlines()[-1:] or ["unknown error"]
@@ -301,6 +320,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
     placements = place_signs(net1, osm)
     files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
+    fixes = junction_fixes(net1, pass1, workdir)
     final = workdir / "network.net.xml"
     run2 = run_tool(
         "netconvert",
