@@ -8,7 +8,7 @@ NaN/inf: the writer stores them as null). Coded values are enums with names (``o
 use Foxglove's official ``foxglove.SceneUpdate`` schema, ``/tf`` ``foxglove.FrameTransform``
 (``cosim.log.foxglove_schemas``).
 
-tests/integration/test_log_schemas_run.py validates every message of a default run against these.
+tests/integration/test_log_schemas_run.py validates every message of a short default run against these.
 """
 
 from __future__ import annotations
