@@ -115,6 +115,7 @@ def _build_network_dir(osm, behaviour: ScvBehaviour, tmp: Path) -> dict:
     counts = _network_counts(net)
     counts["yield_junctions"] = sum(1 for k in nb.junction_kind.values() if k == "give_way")
     counts["signed_approaches"] = dict(Counter(nb.signed_approaches.values()))
+    counts["junction_fixes"] = nb.fixes
     counts["osm_signs_unplaced"] = [
         {"node": p.sign.node_id, "kind": p.sign.kind, "why": p.note} for p in nb.placements if p.note
     ]

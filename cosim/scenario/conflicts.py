@@ -170,11 +170,11 @@ def turnaround_deletions(net) -> list[str]:
 CAR_LENGTH_M = 5.0  # the longest SCV body waiting at an internal junction [m]
 
 
-def _path(shapes, c: _Conn, lead_in_m: float = 0.0):
+def _path(shapes, c: _Conn, lead_in_m: float = 0.0, lead_out_m: float = 0.0):
     pts = _cut(shapes[c.from_lane], lead_in_m, True) if lead_in_m > 0 else []
     for lane in c.chain:
         pts += shapes[lane]
-    return pts
+    return pts + (_cut(shapes[c.to_lane], lead_out_m, False) if lead_out_m > 0 else [])
 
 
 def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2 + CLEARANCE_MARGIN_M):
@@ -197,7 +197,8 @@ def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2
         first = shapely.LineString(shapes[waiting.chain[0]])
         lead = min(CAR_LENGTH_M, shapely.LineString(shapes[waiting.from_lane]).length)
         path = shapely.LineString(_path(shapes, waiting, lead))
-        foe_area = shapely.union_all([shapely.LineString(_path(shapes, f)) for f in foes
+        # a foe that has just left the junction still has its body on the first metres of its lane
+        foe_area = shapely.union_all([shapely.LineString(_path(shapes, f, 0.0, CAR_LENGTH_M)) for f in foes
                                       if f is not waiting and f.from_lane != waiting.from_lane])  # fmt: skip
         if foe_area.is_empty:
             continue
@@ -221,3 +222,39 @@ def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2
         )
         moved.append((waiting.chain[0], round(cont, 2), round(best, 2)))
     return lines, moved
+
+
+def fan_out_deletions(net) -> list[str]:
+    """``<delete>`` lines for one lane feeding two lanes of the same edge (a lane that widens into two).
+
+    netconvert builds two internal lanes from the same point that part only ~3 m by the junction's end; two
+    cars leaving the lane one after the other end up side by side on them, and in a queue they touch (seen on
+    Helsinki, junction 2264808902: collisions every 90 s). One lane feeds one lane; a car that wants the
+    new lane changes into it after the junction. Kept: the target lane fed by the fewest other lanes, then the
+    rightmost.
+    """
+    lines = []
+    for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
+        if edge.getFunction() == "internal":
+            continue
+        for to_edge, conns in sorted(edge.getOutgoing().items(), key=lambda kv: kv[0].getID()):
+            feeders: dict[int, set[int]] = {}
+            for c in conns:
+                feeders.setdefault(c.getToLane().getIndex(), set()).add(c.getFromLane().getIndex())
+            by_from: dict[int, list] = {}
+            for c in conns:
+                by_from.setdefault(c.getFromLane().getIndex(), []).append(c)
+            for from_lane, group in sorted(by_from.items()):
+                if len(group) < 2:
+                    continue
+                keep = min(
+                    group, key=lambda c: (len(feeders[c.getToLane().getIndex()]), c.getToLane().getIndex())
+                )
+                for c in group:
+                    if c is keep:
+                        continue
+                    lines.append(
+                        f"    <delete from={quoteattr(edge.getID())} to={quoteattr(to_edge.getID())} "
+                        f'fromLane="{from_lane}" toLane="{c.getToLane().getIndex()}"/>'
+                    )
+    return lines

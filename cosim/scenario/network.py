@@ -19,7 +19,12 @@ from xml.sax.saxutils import quoteattr
 
 from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
-from cosim.scenario.conflicts import geometric_prohibitions, internal_stop_fixes, turnaround_deletions
+from cosim.scenario.conflicts import (
+    fan_out_deletions,
+    geometric_prohibitions,
+    internal_stop_fixes,
+    turnaround_deletions,
+)
 from cosim.scenario.osm import OsmInfo, SignNode
 from cosim.sumo_bridge.tools import ToolRun, run_tool
 
@@ -74,6 +79,7 @@ class NetworkBuild:
     signed_approaches: dict[str, str]  # edge id -> "stop" | "allway_stop" | "give_way"
     tls_approaches: list[str]
     runs: list[tuple[str, ToolRun]] = field(default_factory=list)
+    fixes: dict = field(default_factory=dict)  # junction geometry fixes (cosim.scenario.conflicts) -> count
 
 
 def _osm_nodes_of_junction(junction_id: str) -> list[str]:
@@ -288,6 +294,8 @@ def junction_fixes(net, net_file: Path, workdir: Path) -> dict:
     """Append the geometric fixes (see ``cosim.scenario.conflicts``) to pass 2's connection file."""
     deletions = turnaround_deletions(net)
     deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
+    fan_outs = fan_out_deletions(net)
+    deletions += fan_outs
     prohibitions, pairs = geometric_prohibitions(net_file, deleted)
     stops, moved = internal_stop_fixes(net_file)
     con = workdir / "signs.con.xml"
@@ -297,7 +305,7 @@ def junction_fixes(net, net_file: Path, workdir: Path) -> dict:
         "".join(f"{j} {p[0]}->{p[1]} before {q[0]}->{q[1]} ({d} m)\n" for j, p, q, d in pairs)
         + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
     )
-    return {"turnarounds_removed": len(deletions), "prohibitions_added": len(prohibitions),
+    return {"turnarounds_removed": len(deletions) - len(fan_outs), "lane_fan_outs_removed": len(fan_outs), "prohibitions_added": len(prohibitions),
             "internal_stops_moved": len(moved)}  # fmt: skip
 
 
@@ -336,5 +344,5 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     for f in files.values():
         f.unlink()
     return NetworkBuild(
-        final, placements, junction_kind, signed, tls_approaches, [("pass1", run1), ("pass2", run2)]
+        final, placements, junction_kind, signed, tls_approaches, [("pass1", run1), ("pass2", run2)], fixes
     )
