@@ -35,6 +35,7 @@ def run_payloads(tmp_path, seed: int, name: str) -> dict[str, list[bytes]]:
     return log.raw
 
 
+@pytest.mark.slow  # three 30-s runs on Munich (tests/integration/test_outputs.py checks whole files, fast)
 def test_same_seed_gives_byte_identical_traces_and_another_seed_does_not(tmp_path):
     a = run_payloads(tmp_path, 5, "a")
     b = run_payloads(tmp_path, 5, "b")
@@ -61,6 +62,7 @@ def _start_run(tmp_path, duration: int) -> tuple[subprocess.Popen, object]:
     return proc, mcap
 
 
+@pytest.mark.slow  # the same path as SIGTERM, which test_outputs.py checks on a small map
 def test_ctrl_c_ends_cleanly_with_a_complete_log(tmp_path):
     proc, mcap = _start_run(tmp_path, 3000)
     proc.send_signal(signal.SIGINT)

@@ -23,6 +23,9 @@ ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "golden" / "paper_P1_3x20s.csv"
 
 
+pytestmark = pytest.mark.slow  # two participants x 60 s of the protocol on Krems; SUMO-only runs of 40-120 s
+
+
 @pytest.fixture(scope="module")
 def short_experiment(tmp_path_factory):
     """configs/experiment.yaml with 20-s phases and two participants (both system orders)."""
@@ -92,7 +95,6 @@ def test_compare_detects_a_drifted_trace(short_experiment, tmp_path):
     assert not compare_files(out / "P1" / "timegap.csv", bad).ok
 
 
-@pytest.mark.slow
 @pytest.mark.own_process
 def test_system_b_agrees_with_sumo_ssm_time_gap_on_a_perfect_radio(tmp_path):
     """With no shadowing, the time gap system B shows from CAMs matches SUMO's SSM TGAP for the same pair:

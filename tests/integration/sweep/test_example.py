@@ -8,11 +8,13 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from testpaths import shared_map
 
 EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "libsumo_study.py"
 
 
+@pytest.mark.slow
 def test_libsumo_study_runs_and_reports_each_window():
     t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, str(EXAMPLE), "--map", str(shared_map("munich")), "--window", "10"],

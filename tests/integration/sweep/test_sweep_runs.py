@@ -65,6 +65,7 @@ def _table(path: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
+@pytest.mark.slow
 def test_local_sweep_of_four_runs(four):
     sweep, result, lines = four
     assert result.ok == 4 and not result.failed and result.skipped == 0, lines
@@ -116,6 +117,7 @@ def test_same_sweep_on_a_local_ray_instance(four, tmp_path):
         assert a == b
 
 
+@pytest.mark.slow
 def test_resume_skips_finished_runs_and_redoes_partial_ones(four):
     sweep, first, _ = four
     out = first.out_dir

@@ -11,6 +11,7 @@ import sys
 import time
 
 import numpy as np
+import pytest
 from test_world3d_drive import XKeys, XServer
 
 from cosim.log import read
@@ -35,6 +36,7 @@ def _windows(keys: XKeys) -> int:
     return n.value
 
 
+@pytest.mark.slow  # the protocol in real time
 def test_experiment_with_a_person_at_the_keyboard(gl, small_scenario, tmp_path):
     _, _, osm = small_scenario
     cfg = tmp_path / "exp.yaml"
