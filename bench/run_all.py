@@ -30,6 +30,11 @@ BENCHES = [
         "make experiment: the paper's protocol, 4 x 15 min (issue: experiment)",
         ["bench.bench_experiment", "--repeat", "3"],
     ),
+    (
+        "drive",
+        "The driving task on every real map: drive health of 300-s default runs and of the experiment (issue 15)",
+        ["bench.bench_drive", "--experiment"],
+    ),
     ("sweep", "Sweep throughput, local pool vs Ray (issue: sweeps)", ["bench.bench_sweep"]),
     ("render", "3D view frame rate (issue: 3D view)", ["bench.bench_render", "--seconds", "20"]),
 ]

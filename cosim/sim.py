@@ -29,7 +29,8 @@ PHASES = ("sumo", "vanet", "adas", "driver", "ego", "writeback", "log")
 EGO_START_M = 2.0  # the ego's rear starts this far from the start of its route [m]
 LEAD_START_GAP_M = 20.0  # the lead starts this far ahead of the ego's front bumper [m]
 LEAD_LENGTH_M = 5.0  # SUMO's default car, which the lead's vType copies [m]
-START_CLEAR_M = 10.0  # vehicles this close to the ego's and the lead's start are taken out [m] ...
+START_CLEAR_M = 10.0  # vehicles between the ego and up to this far ahead of the lead are taken out ...
+START_CLEAR_WIDTH_M = 3.0  # ... within this distance of the line through both (their lane) ...
 START_GUARD_S = 10.0  # ... during this long after they are placed [s]
 
 
@@ -180,25 +181,37 @@ class Simulation:
 
     def _clear_start(self, sim) -> None:
         """For the first START_GUARD_S after the ego (and the lead) are placed: take out the vehicles SUMO
-        inserts into their span of road (an initial vehicle placed on top of the ego, or between the two)
-        and those still waiting to be inserted on its edges, so the following task starts as planned."""
+        inserts between them or onto the ego (an initial vehicle placed in their span of road), and at the
+        first step those still waiting to be inserted on their edges, so the following task starts as
+        planned. Vehicles behind the ego are left alone."""
         w = self.world
-        placed = [w.slot_of[v] for v in (EGO_ID, LEAD_ID) if v in w.slot_of]
-        if len(placed) < (2 if self.config.ego.lead_vehicle else 1):
+        ego, lead = w.slot_of.get(EGO_ID), w.slot_of.get(LEAD_ID)
+        if ego is None or (lead is None and self.config.ego.lead_vehicle):
             return
-        if self._start_guard_until is None:
+        first = self._start_guard_until is None
+        if first:
             self._start_guard_until = w.t_s + START_GUARD_S
-        if w.t_s > self._start_guard_until:
+        elif w.t_s > self._start_guard_until:
             self.hooks["sumo"].remove(self._clear_start)
             return
+        placed = [ego] if lead is None else [ego, lead]
         edge_codes = w.edge_code[placed]
-        edges = [w.edge_names[c] for c in edge_codes.tolist() if c >= 0]
-        xs, ys = w.x_m[placed], w.y_m[placed]
-        cx, cy = float(xs.mean()), float(ys.mean())
-        reach = 0.5 * float(np.hypot(xs.max() - xs.min(), ys.max() - ys.min())) + START_CLEAR_M
-        near = w.valid & (np.hypot(w.x_m - cx, w.y_m - cy) <= reach) & np.isin(w.edge_code, edge_codes)
-        in_span = [w.ids[s] for s in np.flatnonzero(near).tolist() if w.ids[s] not in (EGO_ID, LEAD_ID)]
-        for vid in in_span + self.bridge.pending_on(edges):
+        # the span from the ego's rear to the lead's front (the ego's own length without a lead), along it
+        ex, ey = float(w.x_m[ego]), float(w.y_m[ego])
+        if lead is None:
+            ux, uy = w.heading_unit()
+            dx, dy, span = float(ux[ego]), float(uy[ego]), 0.0
+        else:
+            span = float(np.hypot(w.x_m[lead] - ex, w.y_m[lead] - ey))
+            dx, dy = (float(w.x_m[lead]) - ex) / max(span, 1e-9), (float(w.y_m[lead]) - ey) / max(span, 1e-9)
+        along = (w.x_m - ex) * dx + (w.y_m - ey) * dy
+        across = np.abs(-(w.x_m - ex) * dy + (w.y_m - ey) * dx)
+        inside = (w.valid & np.isin(w.edge_code, edge_codes) & (across < START_CLEAR_WIDTH_M)
+                  & (along > -float(w.length_m[ego]) - 1.0) & (along < span + START_CLEAR_M))  # fmt: skip
+        doomed = [w.ids[s] for s in np.flatnonzero(inside).tolist() if w.ids[s] not in (EGO_ID, LEAD_ID)]
+        if first:
+            doomed += self.bridge.pending_on([w.edge_names[c] for c in edge_codes.tolist() if c >= 0])
+        for vid in doomed:
             self.bridge.remove_vehicle(vid)
 
     def _place_ego_when_due(self, sim) -> None:

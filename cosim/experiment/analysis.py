@@ -57,7 +57,7 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
         m = cols["phase"] == phase
         t0, t1 = cols["t_s"][m][0] + start_s, cols["t_s"][m][-1] + start_s
         tg = cols["time_gap_true_s"][m]
-        following = np.isfinite(tg) & (tg < NO_LEADER_GAP_S)
+        measured = np.isfinite(tg) & (tg < NO_LEADER_GAP_S)  # a leader close enough for a time gap
         warn = cols["warning"][m]
         am = (a["t_s"] >= t0) & (a["t_s"] <= t1)
         gap, ls = a["gap_true_m"][am].astype(float), a["leader_speed_mps"][am].astype(float)
@@ -78,11 +78,10 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
         out.append({
             "phase": str(phase), "system": str(cols["system"][m][0]),
             "duration_s": round(float(cols["t_s"][m][-1] - cols["t_s"][m][0]), 1),
-            "following_share": round(float(following.mean()), 3),
-            "time_gap_mean_s": _r(np.mean(tg[following])) if following.any() else None,
-            "time_gap_sd_s": _r(np.std(tg[following])) if following.any() else None,
-            "share_below_2s": _r(np.mean(tg[following] < 2.0)) if following.any() else None,
-            "share_below_1s": _r(np.mean(tg[following] < 1.0)) if following.any() else None,
+            "time_gap_mean_s": _r(np.mean(tg[measured])) if measured.any() else None,
+            "time_gap_sd_s": _r(np.std(tg[measured])) if measured.any() else None,
+            "share_below_2s": _r(np.mean(tg[measured] < 2.0)) if measured.any() else None,
+            "share_below_1s": _r(np.mean(tg[measured] < 1.0)) if measured.any() else None,
             "warnings": _onsets(warn == "warning"), "advisories": _onsets(warn == "advisory"),
             "hard_braking_events": _onsets(accel < HARD_BRAKE_MPS2),
             "ego_collisions": _onsets(np.isin(np.round(a["t_s"][am], 3), np.round(ego_collision_t, 3))),

@@ -220,7 +220,7 @@ _COLS = [("phase", "phase"), ("system", "system"), ("time_gap_mean_s", "mean TG 
          ("share_below_2s", "< 2 s"), ("share_below_1s", "< 1 s"), ("warnings", "warnings"),
          ("hard_braking_events", "hard brakes"), ("ego_collisions", "collisions"), ("min_ttc_s", "min TTC [s]"),
          ("v2v_pdr_to_leader", "PDR leader"),
-         ("following_share", "following")]  # fmt: skip
+         ("following_share", "following"), ("lead_leader_share", "lead is leader")]  # fmt: skip
 
 
 def _cell(v) -> str:

@@ -75,7 +75,10 @@ def main_sweep(args) -> int:
     for note in result.notes:
         print(f"note: {note}")
     print(f"{result.ok}/{len(result.results)} runs ok ({result.skipped} skipped as done), "
-          f"{len(result.failed)} failed; table: {result.table}")  # fmt: skip
+          f"{len(result.degraded)} degraded, {len(result.failed)} failed; table: {result.table}")  # fmt: skip
+    if result.degraded:
+        print(f"degraded runs (finished, but the drive did not happen as planned: see the error column): "
+              f"{', '.join(r['run_id'] for r in result.degraded)}")  # fmt: skip
     for path in result.plots:
         print(f"plot: {path}")
     if result.failed:

@@ -4,7 +4,8 @@ Layout of ``results/<sweep>/``::
 
     <run-id>/config.yaml   the resolved run config (a valid ``cosim run`` config)
     <run-id>/run.mcap      the run's log
-    <run-id>/result.json   status ok | failed, error, metrics, simulation stats, wall time
+    <run-id>/result.json   status ok | degraded | failed, error, metrics, simulation stats, wall time
+                           (degraded: the run finished but its drive health is not ok; error says why)
     table.csv              one row per run (``cosim.sweep.aggregate``)
     plots/*.png            the sweep file's plots
     sweep.json             the sweep as run (spec, base config, run ids)
@@ -80,7 +81,11 @@ class SweepResult:
 
     @property
     def failed(self) -> list[dict]:
-        return [r for r in self.results if r["status"] != "ok"]
+        return [r for r in self.results if r["status"] == "failed"]
+
+    @property
+    def degraded(self) -> list[dict]:
+        return [r for r in self.results if r["status"] == "degraded"]
 
 
 def config_sha(config_dict: dict) -> str:
@@ -162,7 +167,11 @@ def execute_run(task: RunTask) -> dict:
         result["stats"] = stats
         result["metrics"] = run_metrics(run_dir / "run.mcap", stats=stats, pdr_bands_m=task.pdr_bands_m,
                                         run_dir=run_dir)  # fmt: skip
-        result.update(status="ok", error=None)
+        health = stats["health"]
+        if health["status"] == "ok":
+            result.update(status="ok", error=None)
+        else:  # finished, but its numbers stand on a drive that did not happen as planned
+            result.update(status="degraded", error="degraded drive: " + "; ".join(health["problems"]))
     except BaseException as exc:  # noqa: BLE001 - a run's failure (or Ctrl-C) is recorded, the sweep goes on
         result.update(status="failed", error=_one_line(exc))
         if not isinstance(exc, (CosimError, KeyboardInterrupt)):
@@ -247,10 +256,11 @@ def plan(sweep: Sweep, out_dir: Path) -> list[PlannedRun]:
         task = RunTask(run.run_id, str(run_dir), run.label(), run.overrides, data, config_sha(data),
                        sweep.spec.pdr_bands_m, cache)  # fmt: skip
         prev = read_result(run_dir)
-        if prev and prev.get("status") == "ok" and prev.get("config_sha") == task.config_sha:
+        finished = prev and prev.get("status") in ("ok", "degraded")
+        if finished and prev.get("config_sha") == task.config_sha:
             planned.append(PlannedRun(run, run_dir, task, "done", prev))
         else:
-            state = "redo" if prev and prev.get("status") == "ok" else "todo"
+            state = "redo" if finished else "todo"
             planned.append(PlannedRun(run, run_dir, task, state))
     return planned
 
@@ -275,6 +285,8 @@ class Reporter:
             rtf = st.get("real_time_factor")
             extra = f"{res.get('wall_s', 0):.1f} s" + (f", {rtf:g}x real time" if rtf else "")
             self.out(f"{head} ok     {res['run_id']}  {res['label']}  ({extra})")
+        elif res["status"] == "degraded":
+            self.out(f"{head} DEGRADED {res['run_id']}  {res['label']}: {res['error']}")
         else:
             self.out(f"{head} FAILED {res['run_id']}  {res['label']}: {res['error']}")
 

@@ -151,9 +151,11 @@ def test_an_ego_standing_for_minutes_is_never_teleported_away():
         while EGO_ID not in sim.world.slot_of:
             sim.step()
         veh.setSpeed(EGO_ID, 0.0)
-        events = []
+        events, stalls = [], []
         for _ in range(1500):
             sim.step()
-            events += [e for e in sim.events if e.vehicle == EGO_ID]
+            events += [e for e in sim.events if e.vehicle == EGO_ID and e.kind != "ego_stall"]
+            stalls += [e for e in sim.events if e.kind == "ego_stall"]
         assert veh.getWaitingTime(EGO_ID) > 140
         assert EGO_ID in sim.world.slot_of and not events, events
+        assert len(stalls) == 1  # the run's health logs the standstill once, after 90 s

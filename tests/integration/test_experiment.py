@@ -65,7 +65,9 @@ def test_results_from_kept_messages_equal_results_from_the_file(short_experiment
         assert (tmp_path / "timegap.csv").read_bytes() == (
             out / part["participant"] / "timegap.csv"
         ).read_bytes()
-        assert json.loads(json.dumps(phase_summary(log, cols, start))) == part["phases"]
+        from_file = json.loads(json.dumps(phase_summary(log, cols, start)))
+        # (the runner adds the drive health and the assumptions to each phase: not from the log)
+        assert from_file == [{k: ph[k] for k in f} for ph, f in zip(part["phases"], from_file, strict=True)]
 
 
 def test_time_gap_trace_matches_the_golden_one(short_experiment):

@@ -1,0 +1,72 @@
+"""The driving task the results stand on: the ego and the lead from the first step, routes that never run
+out, and the run's own health (issue: the drive holds on any real map)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from osm_factory import OsmSketch
+
+from cosim.runconfig import load_run_config
+from cosim.scenario import build_scenario
+from cosim.sim import Simulation
+
+ROOT = Path(__file__).resolve().parents[2]
+
+pytestmark = pytest.mark.own_process  # libsumo: one simulation per process
+
+
+@pytest.mark.parametrize("map_name", ["krems", "munich"])
+def test_ego_and_lead_are_on_the_road_from_the_first_step(map_name, tmp_path):
+    """Placed, not queued: at t = 0.1 s both are in SUMO, the lead ~20 m ahead as the ego's leader."""
+    cfg = load_run_config(ROOT / "configs" / "default.yaml", **{
+        "duration_s": 10, "scenario.map": str(ROOT / "configs" / "maps" / f"{map_name}.osm.gz"),
+        "scenario.demand.density": "high", "vanet": None})  # fmt: skip
+    with Simulation(cfg) as sim:
+        sim.step()
+        assert {"ego", "lead"} <= set(sim.world.slot_of), "not placed at the first step"
+        for _ in range(99):
+            sim.step()
+        p = sim.ego.percept
+        assert p.leader_id == "lead" and 0.5 < p.leader_gap_m < 45.0, (p.leader_id, p.leader_gap_m)
+        rep = sim.health.report()
+    assert rep["ego_present_at_s"] == pytest.approx(0.1)
+    assert rep["lead_leader_share"] > 0.95
+
+
+def ring_town(tmp_path) -> Path:
+    """A 400 m x 300 m block of two-way residential streets with a cross street: every edge has a way on."""
+    s = OsmSketch()
+    pts = {"a": (0, 0), "b": (200, 0), "c": (400, 0), "d": (400, 300), "e": (200, 300), "f": (0, 300)}
+    for name, (x, y) in pts.items():
+        s.node(name, x, y)
+    s.way(["a", "b", "c", "d", "e", "f", "a"], highway="residential", maxspeed="50")
+    s.way(["b", "e"], highway="residential", maxspeed="30")
+    return s.write(tmp_path / "ring.osm")
+
+
+def test_the_route_is_extended_past_its_first_destination(tmp_path):
+    """A two-edge route on a small map: after 200 s the ego has driven well past it (the route grew by A*
+    legs), the lead's route in SUMO grew with it, and nobody stopped at the first destination."""
+    osm = ring_town(tmp_path)
+    scn = build_scenario(osm, tmp_path / "scn", density="low", seed=1, log=lambda *a: None)
+    import sumolib
+
+    net = sumolib.net.readNet(str(scn.net_file))
+    first = sorted((e for e in net.getEdges() if e.getFunction() != "internal"), key=lambda e: e.getID())[0]
+    nxt = sorted(first.getOutgoing(), key=lambda e: e.getID())[0]
+    route = [first.getID(), nxt.getID()]
+    planned_m = first.getLength() + nxt.getLength()
+    cfg = load_run_config(None, **{"scenario.map": str(osm), "scenario.demand.density": "low",
+                                   "ego.route": route, "vanet": None, "seed": 2, "duration_s": 200})  # fmt: skip
+    with Simulation(cfg, out_dir=tmp_path / "run", scenario=scn) as sim:
+        stats = sim.run()
+        extended = len(sim.ego_route)
+        lead_route = list(sim.bridge.sumo.vehicle.getRoute("lead")) if "lead" in sim.world.slot_of else []
+    h = stats["health"]
+    assert sim.route.extensions >= 1 and extended > 2
+    assert h["ego_distance_m"] > planned_m + 300.0, (h["ego_distance_m"], planned_m)
+    assert lead_route and lead_route[-1] == sim.ego_route[-1]  # the lead keeps to the same, extended route
+    assert h["longest_standstill_s"] < 30.0 and h["stalls"] == 0
+    assert h["lead_leader_share"] > 0.9, h
