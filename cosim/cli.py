@@ -75,6 +75,13 @@ def _run(args) -> int:
     overrides = {"scenario.map": args.map, "scenario.demand.density": args.density, "duration_s": args.duration,
                  "seed": args.seed}  # fmt: skip
     config = load_run_config(args.config, **overrides)
+    if (
+        config.ego.enabled
+        and config.ego.physics == "mujoco"
+        and config.ego.driver.kind in ("keyboard", "wheel")
+    ):
+        raise CosimError(f"ego.driver.kind: {config.ego.driver.kind} is a person driving: use `cosim drive` (a window "
+                         f"for the driver's view and input), or kind: scripted for `cosim run`")  # fmt: skip
     if args.gui:
         require_display("--gui (sumo-gui)")
     out = Path(args.out) if args.out else Path("results") / config.name

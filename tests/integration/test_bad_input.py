@@ -255,3 +255,11 @@ def test_a_person_driving_needs_a_display(tmp_path, small_map, how):
                           capture_output=True, text=True, env=env, cwd=Path(__file__).parents[2])  # fmt: skip
     one_line(proc, words)
     assert not (tmp_path / "o").exists()
+
+
+def test_run_with_a_person_driving_points_to_cosim_drive(tmp_path, small_map):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(f"scenario: {{map: {small_map}}}\nego: {{driver: {{kind: keyboard}}}}\n")
+    one_line(cosim("run", str(cfg), "--duration", "3", "--out", str(tmp_path / "o")),
+             "ego.driver.kind: keyboard is a person driving: use `cosim drive`")  # fmt: skip
+    assert not (tmp_path / "o").exists()
