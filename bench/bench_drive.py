@@ -85,8 +85,10 @@ def main() -> None:
               f"{h['status']}{': ' + '; '.join(h['problems']) if h['problems'] else ''} |")  # fmt: skip
     if not args.experiment:
         return
-    print("\nExperiment (2 participants, 120-s phases) per map; targets: every phase with time-gap data, "
-          "following >= 0.8, the lead the direct leader >= 0.9.\n")
+    print(
+        "\nExperiment (2 participants, 120-s phases) per map; targets: every phase with time-gap data, "
+        "following >= 0.8, the lead the direct leader >= 0.9.\n"
+    )
     print("| map | participant | phase | mean TG [s] | following | lead is leader | distance [m] | status |")
     print("|---|---|---|---|---|---|---|---|")
     with ThreadPoolExecutor(args.jobs) as pool:

@@ -95,7 +95,9 @@ class DriveHealth:
             if percept is not None and percept.leader_present:
                 what.append(f"behind {percept.leader_id} at {percept.leader_gap_m:.0f} m")
             if percept is not None and percept.sign_kind:
-                what.append(f"{percept.sign_kind} line {percept.sign_dist_m:.0f} m ahead at {percept.sign_id}")
+                what.append(
+                    f"{percept.sign_kind} line {percept.sign_dist_m:.0f} m ahead at {percept.sign_id}"
+                )
             sim.events.append(SumoEvent("ego_stall", EGO_ID, f"standing {STALL_S:.0f} s: " + ", ".join(what),
                                         t - self._still_since))  # fmt: skip
 
@@ -110,8 +112,15 @@ class DriveHealth:
         still = (speed < STOPPED_MPS).astype(np.int8)
         red = np.asarray(self.at_red, dtype=bool)[m]
         events = [(k, v) for te, k, v in self.events if t0 - 1e-9 <= te <= t1 + 1e-9]
-        count = {k: sum(1 for kind, _ in events if kind == k) for k in ("collision", "teleport", "lead_cut_in", "ego_stall")}
-        departed = int(np.asarray(self.departed)[(all_t >= t0 - 1e-9) & (all_t <= t1 + 1e-9)].sum()) if all_t.size else 0
+        count = {
+            k: sum(1 for kind, _ in events if kind == k)
+            for k in ("collision", "teleport", "lead_cut_in", "ego_stall")
+        }
+        departed = (
+            int(np.asarray(self.departed)[(all_t >= t0 - 1e-9) & (all_t <= t1 + 1e-9)].sum())
+            if all_t.size
+            else 0
+        )
         rep = {
             "window_s": round(max(window_s, 0.0), 1),
             "ego_present_at_s": self.ego_present_at_s,
@@ -121,7 +130,9 @@ class DriveHealth:
             "longest_standstill_not_red_s": round(_longest_run(still & ~red) * step_s, 1),
             "stalls": count["ego_stall"],
             "following_share": _share(np.asarray(self.following, dtype=bool)[m]),
-            "lead_leader_share": _share(np.asarray(self.lead_leader, dtype=bool)[m]) if self.has_lead else None,
+            "lead_leader_share": _share(np.asarray(self.lead_leader, dtype=bool)[m])
+            if self.has_lead
+            else None,
             "cut_ins": count["lead_cut_in"] if self.has_lead else None,
             "collisions": count["collision"],
             "ego_collisions": sum(1 for kind, with_ego in events if kind == "collision" and with_ego),
@@ -152,7 +163,9 @@ class DriveHealth:
             if rep["following_share"] < MIN_FOLLOWING_SHARE:
                 out.append(f"following only {rep['following_share']:.0%} of the time")
             if rep["lead_leader_share"] < MIN_LEAD_LEADER_SHARE:
-                out.append(f"the lead car was the ego's leader only {rep['lead_leader_share']:.0%} of the time")
+                out.append(
+                    f"the lead car was the ego's leader only {rep['lead_leader_share']:.0%} of the time"
+                )
         if rep["ego_collisions"]:
             out.append(f"{rep['ego_collisions']} collision(s) of the ego")
         if rep["collisions"] - rep["ego_collisions"]:

@@ -271,7 +271,9 @@ class Simulation:
         try:
             if self.mcap is not None:
                 if self.health is not None and self.stats["steps"]:  # the run's own verdict, last in the log
-                    self.mcap.write("/health", self.world.t_s, {"t_s": self.world.t_s, **self.health.report()})
+                    self.mcap.write(
+                        "/health", self.world.t_s, {"t_s": self.world.t_s, **self.health.report()}
+                    )
                 self.mcap.close()
         finally:
             if self.bridge is not None:

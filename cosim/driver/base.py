@@ -193,7 +193,9 @@ class Percept:
             if not math.isfinite(self.sign_dist_m):
                 raise ValueError("Percept.sign_dist_m must be finite when sign_kind is set")
         if self.junction_movement not in MOVEMENTS:
-            raise ValueError(f"Percept.junction_movement must be one of {MOVEMENTS}, got {self.junction_movement!r}")
+            raise ValueError(
+                f"Percept.junction_movement must be one of {MOVEMENTS}, got {self.junction_movement!r}"
+            )
         if self.sys_b_level not in _LEVELS:
             raise ValueError(f"Percept.sys_b_level must be one of {_LEVELS}, got {self.sys_b_level!r}")
         if self.sys_b_gap_s is not None and not (self.sys_b_gap_s >= 0.0):

@@ -49,7 +49,9 @@ def movement_of(direction: str, into_roundabout: bool = False, permissive: bool 
     return "minor_through"
 
 
-def critical_gap_s(movement: str, waited_s: float, factor: float = 1.0, time_to_impatience_s: float = 60.0) -> float:
+def critical_gap_s(
+    movement: str, waited_s: float, factor: float = 1.0, time_to_impatience_s: float = 60.0
+) -> float:
     """The smallest gap [s] a driver takes after waiting ``waited_s``: t_c at first, falling linearly to t_f."""
     t_c, t_f = HEADWAYS_S[movement]
     share = min(1.0, max(0.0, waited_s) / time_to_impatience_s) if time_to_impatience_s > 0 else 1.0

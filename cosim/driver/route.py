@@ -34,7 +34,9 @@ class StopLine:
 class RoutePath:
     """The route as one lane centre-line polyline with arc lengths, its stop lines and speed limits."""
 
-    def __init__(self, xy, stop_lines: list[StopLine] = (), limits: list[tuple[float, float]] = ((0.0, 13.89),)):
+    def __init__(
+        self, xy, stop_lines: list[StopLine] = (), limits: list[tuple[float, float]] = ((0.0, 13.89),)
+    ):
         """``xy``: (N, 2) centre-line points; ``limits``: (arc position where it starts, speed [m/s])."""
         xy = np.asarray(xy, dtype=np.float64)
         keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
@@ -63,7 +65,9 @@ class RoutePath:
             conns = sorted(conns, key=lambda c: c.getFromLane().getIndex())
             lane = conns[0].getFromLane() if conns else (entry_lane or edge.getLane(0))
             shape = [tuple(p[:2]) for p in lane.getShape()]
-            if entry_lane is not None and entry_lane is not lane and line.pts:  # change lanes early on the edge
+            if (
+                entry_lane is not None and entry_lane is not lane and line.pts
+            ):  # change lanes early on the edge
                 shape = _trim_start(shape, min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength()))
             s0 = line.extend(shape)
             limits.append((s0, lane.getSpeed()))
@@ -221,5 +225,3 @@ def _trim_start(shape: list, dist: float) -> list:
             return [p, *shape[i:]]
         acc += seg
     return shape[-1:]
-
-

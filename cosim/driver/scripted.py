@@ -491,7 +491,9 @@ class ScriptedDriver(Driver):
         to_stop = dist_m - prof.stop_line_margin_m
         if v < _CREEP_MPS and to_stop < _WAIT_ZONE_M and self._sign_phase != "go":
             self._sign_waited_s += dt_s
-        needed = critical_gap_s(d.movement, self._sign_waited_s, prof.critical_gap_factor, prof.time_to_impatience_s)
+        needed = critical_gap_s(
+            d.movement, self._sign_waited_s, prof.critical_gap_factor, prof.time_to_impatience_s
+        )
         if d.leader and 0.0 < d.gap - d.sign_d < _FOLLOW_THROUGH_M and dist_m < _WAIT_ZONE_M:
             # queued right behind a vehicle that has just entered the junction: the follow-up headway
             needed = min(needed, follow_up_s(d.movement, prof.critical_gap_factor))

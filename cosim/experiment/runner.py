@@ -102,7 +102,9 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
         t0, t1 = next((a, b) for a, b, p in bounds if p.name == ph["phase"])
         rep = health[0].report(t0, t1) if health and health[0] is not None else None
         ph["health"] = rep
-        if rep is not None:  # the following task as the drive health sees it (a queue behind the leader counts)
+        if (
+            rep is not None
+        ):  # the following task as the drive health sees it (a queue behind the leader counts)
             ph["following_share"] = rep["following_share"]
             ph["lead_leader_share"] = rep["lead_leader_share"]
     for p in order:  # a phase the protocol has but the log does not: no time-gap data at all
@@ -195,7 +197,9 @@ def degraded_phases(summary: dict) -> list[str]:
         for ph in r["phases"]:
             h = ph.get("health")
             if h is None or h["status"] != "ok":
-                out.append(f"{r['participant']} {ph['phase']}: " + ("; ".join(h["problems"]) if h else "no data"))
+                out.append(
+                    f"{r['participant']} {ph['phase']}: " + ("; ".join(h["problems"]) if h else "no data")
+                )
     return out
 
 

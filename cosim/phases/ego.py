@@ -219,7 +219,7 @@ class EgoController:
                 break
             kind = _SIGN_OF_STATE.get(line.state)
             permissive = False
-            if kind is None and tls and tls[3] == _TLS_YIELD and abs(tls[2] - (line.s_m - s_front)) < 2.0:
+            if kind is None and tls and tls[3] == _TLS_YIELD and abs(tls[2] - (line.s_m - s_front)) < 5.0:
                 kind, permissive = "yield", True
             if kind:
                 dist = max(0.0, line.s_m - s_front)

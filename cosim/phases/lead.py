@@ -34,7 +34,9 @@ LIGHT_DECIDE_M = 70.0  # the lead decides whether to stop for the ego's sake thi
 LIGHT_MARGIN_S = 1.5  # the ego must reach the stop line this long before the green ends [s]
 STOP_DECEL_MPS2 = 2.0  # the lead's planned deceleration when it stops for the ego at a green [m/s^2]
 STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
-YIELD_STATES = "sw=m"  # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor
+YIELD_STATES = (
+    "sw=m"  # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor
+)
 LEAD_FOLLOWER_GAP_FACTOR = 1.2  # the follow-up headway the lead leaves the ego: a cautious participant's
 
 
@@ -50,7 +52,7 @@ class LeadVehicle:
         self._stop_at_light = False  # ... and whether the lead stops there for the ego
         self._lead_s: float | None = None  # the lead's rear on the ego's route path [m]
         self._ego_leader: str | None = None
-        self._yield_wait: tuple | None = None  # (line key, time the lead came within YIELD_HOLD_M of it)
+        self._yield_wait: tuple | None = None  # (last distance to the yield line, when the lead came near it)
         sim.add_hook("driver", self.step)
 
     def step(self, sim) -> None:
@@ -99,7 +101,9 @@ class LeadVehicle:
             self._stop_at_light = False
             if green:
                 # where the ego's front is when the lead's front is at the line, and how long it needs
-                ego_to_line = dist + float(sim.world.length_m[sim.world.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
+                ego_to_line = (
+                    dist + float(sim.world.length_m[sim.world.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
+                )
                 green_left = sim.bridge.tls_green_left_s(tls_id, link)
                 self._stop_at_light = ego_to_line / max(v_ego, 1.0) + LIGHT_MARGIN_S > green_left
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
@@ -118,9 +122,10 @@ class LeadVehicle:
             self._yield_wait = None
             return None
         t = sim.world.t_s
-        if self._yield_wait is None or self._yield_wait[0] != link[:1] + (round(dist / 50),):
-            self._yield_wait = (link[:1] + (round(dist / 50),), t)
+        if self._yield_wait is None or dist > self._yield_wait[0] + 5.0:  # a new line (distances grew)
+            self._yield_wait = (dist, t)
         waited = t - self._yield_wait[1]
+        self._yield_wait = (dist, self._yield_wait[1])
         movement = movement_of(direction)
         needed = critical_gap_s(movement, waited) + follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
         if self.gap_m <= EGO_CLOSE_M and priority_gap_s(sim, LEAD_ID, dist) >= needed:

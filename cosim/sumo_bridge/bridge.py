@@ -334,7 +334,7 @@ class SumoBridge:
         veh = self.sumo.vehicle
         try:
             held = veh.getRoute(vid)
-            veh.setRoute(vid, [*held[veh.getRouteIndex(vid):], *edges])
+            veh.setRoute(vid, [*held[veh.getRouteIndex(vid) :], *edges])
         except Exception:  # libsumo.TraCIException
             return False
         return True

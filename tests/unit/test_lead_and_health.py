@@ -112,7 +112,11 @@ def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
     lead.step(sim)
     sim.ego.percept = SimpleNamespace(leader_present=True, leader_id="scv7")
     lead.step(sim)
-    assert lead.cut_ins == 1 and [e.kind for e in sim.events] == ["lead_cut_in"] and sim.events[0].vehicle == "scv7"
+    assert (
+        lead.cut_ins == 1
+        and [e.kind for e in sim.events] == ["lead_cut_in"]
+        and sim.events[0].vehicle == "scv7"
+    )
 
 
 def _health_sim(lead: bool = True):
