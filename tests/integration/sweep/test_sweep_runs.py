@@ -162,7 +162,7 @@ runs:
   - {ego.route: [no_such_edge]}
 seeds: [1]
 """
-    sweep = load_sweep(write_sweep(tmp_path, body))
+    sweep = load_sweep(write_sweep(tmp_path, body, duration_s=5.0))  # only the good run simulates
     lines: list[str] = []
     backend = LocalBackend(1)
     try:

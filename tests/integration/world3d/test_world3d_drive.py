@@ -95,6 +95,7 @@ class XKeys:
         self.x.XCloseDisplay(self.d)
 
 
+@pytest.mark.slow  # 10 s in real time
 def test_drive_under_xvfb_with_key_presses_moves_and_turns_the_ego(gl, small_scenario, tmp_path):
     _, _, osm = small_scenario
     cfg = tmp_path / "drive.yaml"
