@@ -290,3 +290,22 @@ def test_run_with_a_person_driving_points_to_cosim_drive(tmp_path, small_map):
     one_line(cosim_here("run", str(cfg), "--duration", "3", "--out", str(tmp_path / "o")),
              "ego.driver.kind: keyboard is a person driving: use `cosim drive`")  # fmt: skip
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["run", "drive", "experiment"])
+def test_a_folder_holding_a_run_is_replaced_only_with_force(tmp_path, small_map, command):
+    out = tmp_path / "o"
+    (out / "P1").mkdir(parents=True)
+    (out / "P1" / "run.mcap").write_bytes(b"an earlier run")
+    args = {
+        "run": ["run", "--map", small_map],
+        "drive": ["drive", "--map", small_map, "--driver", "scripted"],
+        "experiment": [
+            "experiment",
+            Path(__file__).parents[2] / "configs" / "experiment.yaml",
+            "--map",
+            small_map,
+        ],
+    }[command]
+    one_line(cosim_here(*args, "--out", out), f"--out {out} already holds a run: add --force to replace it")
+    assert (out / "P1" / "run.mcap").read_bytes() == b"an earlier run"
