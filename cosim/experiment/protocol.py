@@ -17,6 +17,8 @@ from cosim.driver.profiles import PROFILES
 from cosim.errors import ConfigError
 from cosim.runconfig import RunConfig, run_config_from
 
+MIN_PHASE_S = 1.0  # a phase shorter than ten base steps has no time-gap trace to speak of [s]
+
 
 @dataclass(frozen=True)
 class PhaseSpec:
@@ -25,8 +27,10 @@ class PhaseSpec:
     duration_s: float = 300.0
 
     def __post_init__(self):
-        if self.duration_s <= 0:
-            raise ValueError(f"phase {self.name!r}: duration_s must be > 0")
+        if not self.duration_s >= MIN_PHASE_S:  # also NaN
+            raise ValueError(
+                f"phase {self.name!r}: duration_s must be >= {MIN_PHASE_S:g} s (ten steps), got {self.duration_s}"
+            )
 
 
 @dataclass(frozen=True)
@@ -90,8 +94,10 @@ def load_experiment(path: str | Path, *, map_path: str | None = None, participan
     base = Path(path).resolve().parent
     exp = from_dict(ExperimentConfig, data)
     if phase_duration_s is not None:
-        if phase_duration_s <= 0:
-            raise ConfigError("--phase-duration", "must be > 0")
+        if not phase_duration_s >= MIN_PHASE_S:
+            raise ConfigError(
+                "--phase-duration", f"must be >= {MIN_PHASE_S:g} s (ten steps), got {phase_duration_s}"
+            )
         exp = dataclasses.replace(
             exp, phases=tuple(dataclasses.replace(p, duration_s=phase_duration_s) for p in exp.phases)
         )

@@ -99,8 +99,8 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
     phases = phase_summary(log, cols, start)
     bounds = PhaseSchedule.bounds_of(order, start)
     for ph in phases:
-        t0, t1 = next((a, b) for a, b, p in bounds if p.name == ph["phase"])
-        rep = health[0].report(t0, t1) if health and health[0] is not None else None
+        window = next(((a, b) for a, b, p in bounds if p.name == ph["phase"]), None)
+        rep = health[0].report(*window) if window and health and health[0] is not None else None
         ph["health"] = rep
         if (
             rep is not None

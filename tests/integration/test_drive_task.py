@@ -46,6 +46,7 @@ def ring_town(tmp_path) -> Path:
     return s.write(tmp_path / "ring.osm")
 
 
+@pytest.mark.slow
 def test_the_route_is_extended_past_its_first_destination(tmp_path):
     """A two-edge route on a small map: after 200 s the ego has driven well past it (the route grew by A*
     legs), the lead's route in SUMO grew with it, and nobody stopped at the first destination."""
