@@ -11,6 +11,7 @@ that contradict OSM ``turn:lanes`` arrows are removed.
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -290,23 +291,26 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
     return files, junction_kind, signed_approaches, sorted(tls_approaches)
 
 
-def junction_fixes(net, net_file: Path, workdir: Path) -> dict:
-    """Append the geometric fixes (see ``cosim.scenario.conflicts``) to pass 2's connection file."""
+FIX_ROUNDS = 3  # netconvert passes that apply junction fixes; each one's output is checked again
+
+
+def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, int]:
+    """Append the geometric fixes (see ``cosim.scenario.conflicts``) for ``net_file`` to a connection file."""
     deletions = turnaround_deletions(net)
     deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
     fan_outs = fan_out_deletions(net)
-    deletions += fan_outs
     prohibitions, pairs = geometric_prohibitions(net_file, deleted)
     stops, moved = internal_stop_fixes(net_file)
-    con = workdir / "signs.con.xml"
-    body = con.read_text().replace("</connections>\n", "")
-    con.write_text(body + "\n".join(deletions + stops + prohibitions) + "\n</connections>\n")
-    (workdir / "junction_fixes.txt").write_text(
-        "".join(f"{j} {p[0]}->{p[1]} before {q[0]}->{q[1]} ({d} m)\n" for j, p, q, d in pairs)
-        + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
-    )
-    return {"turnarounds_removed": len(deletions) - len(fan_outs), "lane_fan_outs_removed": len(fan_outs), "prohibitions_added": len(prohibitions),
-            "internal_stops_moved": len(moved)}  # fmt: skip
+    body = con_file.read_text().replace("</connections>\n", "") if con_file.exists() else "<connections>\n"
+    con_file.write_text(body + "\n".join(deletions + fan_outs + stops + prohibitions) + "\n</connections>\n")
+    with log.open("a") as fh:
+        fh.write(
+            "".join(f"{j} {p[0]}->{p[1]} before {q[0]}->{q[1]} ({d} m)\n" for j, p, q, d in pairs)
+            + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
+            + "".join(line.strip() + "\n" for line in deletions + fan_outs)
+        )
+    return {"turnarounds_removed": len(deletions), "lane_fan_outs_removed": len(fan_outs),
+            "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved)}  # fmt: skip
 
 
 def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
@@ -328,7 +332,9 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
     placements = place_signs(net1, osm)
     files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
-    fixes = junction_fixes(net1, pass1, workdir)
+    fix_log = workdir / "junction_fixes.txt"
+    fix_log.unlink(missing_ok=True)
+    fixes = junction_fixes(net1, pass1, files["con"], fix_log)
     final = workdir / "network.net.xml"
     run2 = run_tool(
         "netconvert",
@@ -343,6 +349,24 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     pass1.unlink()
     for f in files.values():
         f.unlink()
-    return NetworkBuild(
-        final, placements, junction_kind, signed, tls_approaches, [("pass1", run1), ("pass2", run2)], fixes
-    )
+    # netconvert rebuilds the junctions it patched (a prohibition adds an internal stop, a deleted connection
+    # reshapes its neighbours): check the result and fix again until nothing is left
+    runs = [("pass1", run1), ("pass2", run2)]
+    fixes["fix_rounds"] = 1
+    for i in range(FIX_ROUNDS - 1):
+        con = workdir / "fixes.con.xml"
+        more = junction_fixes(sumolib.net.readNet(str(final), withInternal=False), final, con, fix_log)
+        if not any(more.values()):
+            con.unlink()
+            break
+        fixes = {k: fixes[k] + more.get(k, 1) for k in fixes}  # fix_rounds + 1
+        fixed = workdir / "fixed.net.xml"
+        run = run_tool("netconvert", ["--sumo-net-file", str(final), "--connection-files", str(con), *COMMON_OPTIONS,
+                                      "--offset.disable-normalization", "true", "--output-file", str(fixed)])  # fmt: skip
+        with (workdir / "netconvert.log").open("a") as fh:
+            fh.write(f"\n--- junction fixes, round {i + 2} ---\n" + run.log)
+        _check("netconvert (junction fixes)", run, osm.path)
+        os.replace(fixed, final)
+        con.unlink()
+        runs.append((f"fixes{i + 2}", run))
+    return NetworkBuild(final, placements, junction_kind, signed, tls_approaches, runs, fixes)
