@@ -72,6 +72,7 @@ class EgoController:
         self.driver = make_driver(cfg.driver, np.random.default_rng([sim.config.seed, 11, cfg.driver_seed]),
                                   math.radians(p.max_steer_deg), p.wheelbase_m)  # fmt: skip
         self.origin: tuple[float, float] | None = None
+        self.s_front_m: float | None = None  # the front bumper's arc position on the route path [m]
         self.controls = Controls()
         self.started = False
         self.percept: Percept | None = None

@@ -83,7 +83,7 @@ class LeadVehicle:
         rear_x = float(w.x_m[lead] - ux[lead] * w.length_m[lead])
         rear_y = float(w.y_m[lead] - uy[lead] * w.length_m[lead])
         controller = sim.ego
-        if controller is None or getattr(controller, "s_front_m", None) is None:
+        if controller is None or controller.s_front_m is None:
             return math.hypot(rear_x - w.x_m[ego], rear_y - w.y_m[ego])
         near = self._lead_s if self._lead_s is not None else controller.s_front_m
         self._lead_s, _ = controller.path.project(rear_x, rear_y, near_s=near)

@@ -108,7 +108,7 @@ def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_su
 def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
     sim = fake_sim(gap_m=20.0, ego_speed=8.0)
     lead = LeadVehicle(sim, wait_beyond_m=40.0)
-    sim.ego = SimpleNamespace(percept=SimpleNamespace(leader_present=True, leader_id=LEAD_ID))
+    sim.ego = SimpleNamespace(s_front_m=None, percept=SimpleNamespace(leader_present=True, leader_id=LEAD_ID))
     lead.step(sim)
     sim.ego.percept = SimpleNamespace(leader_present=True, leader_id="scv7")
     lead.step(sim)
