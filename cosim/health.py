@@ -41,7 +41,9 @@ MIN_WINDOW_S = 30.0  # shorter windows are not judged on distance and shares [s]
 class DriveHealth:
     def __init__(self, sim):
         self.sim = sim
-        self.has_lead = bool(sim.config.ego.enabled and sim.config.ego.lead_vehicle)
+        # whom the ego follows is known from its driver's percept (a MuJoCo ego); a plain SUMO ego has none
+        self.sees_leader = bool(sim.config.ego.enabled and sim.config.ego.physics == "mujoco")
+        self.has_lead = self.sees_leader and bool(sim.config.ego.lead_vehicle)
         self.ego_expected = bool(sim.config.ego.enabled)
         self.depart_s = float(sim.config.ego.depart_s)
         self.t: list[float] = []  # per step with the ego present
@@ -129,7 +131,9 @@ class DriveHealth:
             "longest_standstill_s": round(_longest_run(still) * step_s, 1),
             "longest_standstill_not_red_s": round(_longest_run(still & ~red) * step_s, 1),
             "stalls": count["ego_stall"],
-            "following_share": _share(np.asarray(self.following, dtype=bool)[m]),
+            "following_share": _share(np.asarray(self.following, dtype=bool)[m])
+            if self.sees_leader
+            else None,
             "lead_leader_share": _share(np.asarray(self.lead_leader, dtype=bool)[m])
             if self.has_lead
             else None,

@@ -121,7 +121,9 @@ def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
 
 def _health_sim(lead: bool = True):
     w = World(capacity=8)
-    config = SimpleNamespace(ego=SimpleNamespace(enabled=True, lead_vehicle=lead, depart_s=0.0))
+    config = SimpleNamespace(
+        ego=SimpleNamespace(enabled=True, lead_vehicle=lead, depart_s=0.0, physics="mujoco")
+    )
     sim = SimpleNamespace(world=w, config=config, ego=None, events=[], step_s=0.1, hooks=[])
     sim.add_hook = lambda phase, fn: sim.hooks.append((phase, fn))
     return sim
