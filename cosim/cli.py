@@ -6,6 +6,7 @@ import argparse
 import errno
 import json
 import math
+import os
 import signal
 import sys
 from pathlib import Path
@@ -285,14 +286,15 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("cosim: interrupted", file=sys.stderr)
         return _signal_exit
+    except BrokenPipeError:  # output piped into `head` (before OSError, which it is a kind of)
+        # stdout is gone: point it at /dev/null so the interpreter's final flush does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:  # a write the checks above could not foresee (disk full, permission changed ...)
         if exc.filename is None or exc.errno not in _USER_ERRNOS:
             raise
         print(f"cosim: error: cannot write {exc.filename}: {exc.strerror}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # output piped into `head`
-        sys.stderr.close()
-        return 0
 
 
 _USER_ERRNOS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.ENOSPC,
