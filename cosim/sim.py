@@ -233,7 +233,7 @@ class Simulation:
         self.outputs = {}
         self.events = self.bridge.step(self.world)
         for phase in PHASES:
-            for fn in self.hooks[phase]:
+            for fn in tuple(self.hooks[phase]):  # a hook may remove itself (or add one) while they run
                 fn(self)
         for ev in self.events:
             if ev.kind == "teleport":
