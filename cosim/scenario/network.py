@@ -21,6 +21,7 @@ from xml.sax.saxutils import quoteattr
 from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.scenario.conflicts import (
+    crossing_merge_deletions,
     fan_out_deletions,
     geometric_prohibitions,
     internal_stop_fixes,
@@ -299,6 +300,9 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
     deletions = turnaround_deletions(net)
     deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
     fan_outs = fan_out_deletions(net)
+    merges, crossed = crossing_merge_deletions(net_file)
+    deletions += merges
+    deleted |= {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in merges}
     prohibitions, pairs = geometric_prohibitions(net_file, deleted)
     stops, moved = internal_stop_fixes(net_file)
     body = con_file.read_text().replace("</connections>\n", "") if con_file.exists() else "<connections>\n"
@@ -309,7 +313,8 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
             + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
             + "".join(line.strip() + "\n" for line in deletions + fan_outs)
         )
-    return {"turnarounds_removed": len(deletions), "lane_fan_outs_removed": len(fan_outs),
+    return {"turnarounds_removed": len(deletions) - len(merges), "lane_fan_outs_removed": len(fan_outs),
+            "crossing_merge_lanes_removed": len(merges),
             "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved)}  # fmt: skip
 
 
