@@ -7,6 +7,7 @@
 | give-way: slow to 5 km/h, stop if a vehicle approaches within 200 m | the give-way connections get a 5 km/h passage speed, so cars arrive at the line at 5 km/h; same gap rule | the 5 km/h also applies while crossing the junction |
 | keep a 2-s gap to the vehicle ahead | Krauss ``tau`` = 2 s | Krauss keeps *at least* tau; the paper cut speed by 80 % instead |
 | slow down in curves | netconvert ``--junctions.limit-turn-speed 5.5`` (lateral accel. on junction turns) | curves inside an edge do not lower the speed in SUMO |
+| (drivers avoid a jam they see) | SUMO's rerouting device on every SCV type, period ``reroute_period_s`` | without it every SCV keeps its free-flow A* route into the same bottleneck until SUMO teleports it |
 | per-vehicle max accel / decel, mass, friction | a vTypeDistribution of ``n_vtypes`` types sampled from truncated normals | SUMO has no tyre friction: decel <= mu*g is enforced when sampling |
 """
 
