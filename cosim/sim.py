@@ -11,6 +11,7 @@ import json
 import sys
 import time
 from collections.abc import Callable
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -147,6 +148,13 @@ class Simulation:
             self._net = sumolib.net.readNet(str(self.scenario.net_file), withInternal=True)
         return self._net
 
+    @cached_property
+    def drivable_edges(self) -> list:
+        """The network's largest strongly connected car network (computed once, for whoever needs it)."""
+        from cosim.scenario.demand import drivable_component
+
+        return drivable_component(self.net)
+
     def _write_metadata(self) -> None:
         self.mcap.metadata("cosim", {
             "config": json.dumps(to_dict(self.config), sort_keys=True), "seed": self.config.seed,
@@ -215,7 +223,8 @@ class Simulation:
             self.bridge.remove_vehicle(vid)
 
     def _place_ego_when_due(self, sim) -> None:
-        if self.bridge.ego_id is None and self.world.t_s + self.step_s >= self.config.ego.depart_s - 1e-9:
+        if self.world.t_s + self.step_s >= self.config.ego.depart_s - 1e-9:
+            self.hooks["sumo"].remove(self._place_ego_when_due)
             self._place_ego()
 
     # -- the loop --------------------------------------------------------------------------------------------

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.scenario.demand import RouteChainer, drivable_component
+from cosim.scenario.demand import RouteChainer
 from cosim.sumo_bridge.bridge import LEAD_ID, SumoEvent
 
 EXTEND_AHEAD_M = 2000.0  # another leg is appended when less than this is left ahead of the ego [m]
@@ -31,7 +31,7 @@ class EgoRoute:
     @property
     def chainer(self) -> RouteChainer:
         if self._chainer is None:  # the network's drivable part, once per run and only when needed
-            self._chainer = RouteChainer(drivable_component(self.sim.net))
+            self._chainer = RouteChainer(self.sim.drivable_edges)
         return self._chainer
 
     def extend_if_short(self, ahead_m: float) -> bool:

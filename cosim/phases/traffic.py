@@ -24,7 +24,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 import shapely
 
-from cosim.scenario.demand import POOL_ROUTE_PREFIX, DemandParams, drivable_component, is_spawn_edge
+from cosim.scenario.demand import POOL_ROUTE_PREFIX, DemandParams, is_spawn_edge
 from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID
 
 UPDATE_EVERY_S = 1.0
@@ -45,7 +45,7 @@ class TrafficAroundEgo:
         self.params = params
         self.rng = np.random.default_rng([sim.config.seed, 0x7A])
         self.every = max(1, round(UPDATE_EVERY_S / sim.step_s))
-        comp = drivable_component(sim.net)
+        comp = sim.drivable_edges
         self._lane_km_points(comp)
         self._pool(comp)
         start = sim.net.getEdge(sim.ego_route[0]).getShape()[0] if sim.ego_route else (0.0, 0.0)
