@@ -144,7 +144,10 @@ class EgoController:
         route = sim.ego_route
         k = self.path.edge_index(s_front)
         end = self._sumo_route_end
-        held = sim.bridge.edges_left(EGO_ID) == (len(route) if end is None else end) - k
+        # SUMO's route index may be one edge behind the path's: the pose written last step (moveToXY) takes
+        # effect only at the next one, so the front bumper can enter the next edge here a step earlier
+        expected = (len(route) if end is None else end) - k
+        held = sim.bridge.edges_left(EGO_ID) in (expected, expected + 1)
         if (
             held
             and end is not None
