@@ -765,6 +765,21 @@ class Links:
             ti, ri, d = ti[order], ri[order], d[order]
         return ti, ri, d
 
+    def decoded_at(self, receivers: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``decoded()`` restricted to the sorted unique receiver indices ``receivers`` (a column gather)."""
+        ti, ri, d = [], [], []
+        for b in self.blocks:
+            cols = np.asarray(receivers, dtype=np.intp) if b.m is None else np.intersect1d(b.m, receivers)
+            pos = cols if b.m is None else np.searchsorted(b.m, cols)
+            tl, cl = np.nonzero(b.ok[:, pos])
+            ti.append(tl if b.t is None else b.t[tl])
+            ri.append(cols[cl])
+            d.append(np.sqrt(b.d2[tl, pos[cl]]))
+        if not self.blocks:
+            e = np.zeros(0, dtype=np.intp)
+            return e, e, np.zeros(0, dtype=np.float32)
+        return np.concatenate(ti), np.concatenate(ri), np.concatenate(d)
+
     def batch(self, receivers: np.ndarray | None = None) -> LinkBatch:
         """Every reported link (or those of the receiver indices ``receivers``), sorted by tx then rx."""
         parts = []

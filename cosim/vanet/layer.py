@@ -324,7 +324,13 @@ class VanetLayer:
         t4 = clock()
         timing["channel"] = t4 - t3
 
-        # 5. decoded messages: slot maps now, OBU tables next step
+        # 5. slot reselections in slot order (each chooser knows what it decoded before its slot), then the
+        # decoded messages: slot maps now, OBU tables next step
+        def decoded_by(stations: np.ndarray):
+            t_i, r_i, d_m = links.decoded_at(np.searchsorted(active, stations))
+            return active[r_i], t_i, d_m
+
+        self.mac.resolve(tx, decoded_by)
         lt, lr, dist = links.decoded()
         rx_slot = active[lr]
         self.mac.hear(rx_slot, lt, tx.g, tx.timeout, tx.offset, dist)

@@ -254,6 +254,8 @@ class SotdmaMac:
         self.replans = 0  # rate-change re-plans so far (diagnostics)
         self.n_started = 0  # 1 + the highest slot ever started: stations from there on are idle (not scanned)
         self.capacity = 0
+        self._deferred: list[tuple[int, int, int, int]] = []  # reselections left to resolve()
+        self._deferred_tx: Transmissions | None = None
         self._alloc(capacity)
 
     _STATION = {
@@ -474,9 +476,14 @@ class SotdmaMac:
         """Use every reserved slot in [g_lo, g_hi): stations with a pending CAM send it in their first one.
 
         ``pending`` (capacity,) bool is cleared for the stations that sent. Timeouts count down on every use
-        (sent or silent); at 0 a new slot is chosen in the same SI of the next frame and announced.
+        (sent or silent); a use at timeout 0 needs a new slot in the same SI of the next frame. Those choices
+        are *not* made here: ``resolve`` makes them in slot order once the window's receptions are known, so
+        a station choosing at slot g sees every reservation it decoded before g, also earlier in this window
+        (their announced offsets are 0 in the returned arrays until then).
         A window holds a few dozen uses: after the array scan, plain Python beats array rounds.
         """
+        if self._deferred:  # the previous window was not resolved: its choosers decoded nothing
+            self.resolve(self._deferred_tx)
         n = self.n
         next_g = self.res_next_g[: self.n_started]
         use = (next_g >= g_lo) & (next_g < g_hi)
@@ -485,49 +492,84 @@ class SotdmaMac:
         # by slot, then station, then reservation column
         uses = sorted(zip(self.res_next_g[st, j].tolist(), st.tolist(), j.tolist(), strict=True))
         res_next_g, res_timeout = self.res_next_g, self.res_timeout
-        sent, sent_tau, offset_of = [], [], {}  # offset_of: use index -> announced offset
-        resel = []
+        sent, sent_tau = [], []
+        resel = []  # (g, station, column, index among the sent transmissions or -1)
         seen = set()
-        for i, (g, s, jj) in enumerate(uses):
+        for g, s, jj in uses:
             # the first use of each station in the window carries its pending CAM
+            k = -1
             if s not in seen:
                 seen.add(s)
                 if pending[s]:
                     pending[s] = False
-                    sent.append(i)
+                    k = len(sent)
+                    sent.append((g, s))
             tau = int(res_timeout[s, jj])
-            sent_tau.append(tau)
-            # continuous operation: count down, or reselect at timeout 0
+            if k >= 0:
+                sent_tau.append(tau)
+            # continuous operation: count down, or reselect at timeout 0 (in ``resolve``)
             if tau > 0:
                 res_timeout[s, jj] = tau - 1
                 res_next_g[s, jj] = g + n
             else:
-                resel.append(i)
-        if resel:
-            rs = [uses[i][1] for i in resel]
-            rj = [uses[i][2] for i in resel]
-            rg = [uses[i][0] for i in resel]
+                resel.append((g, s, jj, k))
+        # first frame after entry / re-plan: announce the offset to the station's next slot, the nearest
+        # later one of a later use in this window or a next reservation (reselected slots lie a frame ahead)
+        offsets = [0] * len(sent)
+        later_uses: dict[int, list[int]] = {}
+        for g, s, _ in uses:
+            later_uses.setdefault(s, []).append(g)
+        for k, (g, s) in enumerate(sent):
+            if sent_tau[k] > 0 and g < self.first_frame_end_g[s]:
+                later = [x for x in res_next_g[s].tolist() if x > g]
+                later += [x for x in later_uses[s] if x > g]
+                offsets[k] = min(later) - g if later else 0
+        tx = Transmissions(
+            np.array([s for _, s in sent], dtype=np.int32),
+            np.array([g for g, _ in sent], dtype=np.int64),
+            np.array(sent_tau, dtype=np.int8),
+            np.array(offsets, dtype=np.int32),
+        )
+        self._deferred, self._deferred_tx = resel, tx
+        return tx
+
+    def resolve(self, tx: Transmissions, decoded_by=None) -> None:
+        """Make the window's deferred slot reselections in slot order (after ``transmissions``).
+
+        ``decoded_by(stations) -> (rx_station (m,), link_tx (m,), dist_m (m,))``: the window's decoded
+        messages at those stations (link_tx indexes ``tx``); None: nothing was decoded. Before the choices at slot g, the choosers' slot
+        maps take in what they decoded from slots before g; each choice is then announced (``tx.offset``,
+        filled in place) by the transmission in that slot, if it carried a CAM. Choices at the same slot
+        are simultaneous and can meet. The caller then ``hear``s the whole window (idempotent for the part
+        heard here).
+        """
+        resel, self._deferred = self._deferred, []
+        if not resel:
+            return
+        n = self.n
+        i = 0
+        while i < len(resel):
+            g = resel[i][0]
+            k = i
+            while k < len(resel) and resel[k][0] == g:
+                k += 1
+            group = resel[i:k]
+            i = k
+            rs = [u[1] for u in group]
+            if decoded_by is not None:
+                rx, lt, dist = decoded_by(np.array(sorted(set(rs)), dtype=np.int64))
+                before = tx.g[lt] < g
+            if decoded_by is not None and before.any():
+                self.hear(rx[before], lt[before], tx.g, tx.timeout, tx.offset, dist[before])
+            rj = [u[2] for u in group]
             delta = [self._delta(max(int(self.rate[s]), 1)) for s in rs]
             nominal = [int(self.res_nominal[s, jj]) for s, jj in zip(rs, rj, strict=True)]
-            # the nominal occurrence each use belongs to, then the same one a frame later
-            centre = [g + (nom - g % n + n // 2) % n - n // 2 + n for g, nom in zip(rg, nominal, strict=True)]
-            new_g = self._assign(rs, rj, nominal, centre, delta, [g + 1 for g in rg]).tolist()
-            for i, g, gn in zip(resel, rg, new_g, strict=True):
-                offset_of[i] = gn - g
-        # first frame after entry / re-plan: announce the offset to the station's next slot, the nearest
-        # later one of a later use in this window or a next reservation
-        for i in sent:
-            g, s, _ = uses[i]
-            if sent_tau[i] > 0 and g < self.first_frame_end_g[s]:
-                later = [x for x in res_next_g[s].tolist() if x > g]
-                later += [u[0] for u in uses[i + 1 :] if u[1] == s and u[0] > g]
-                offset_of[i] = min(later) - g if later else 0
-        return Transmissions(
-            np.array([uses[i][1] for i in sent], dtype=np.int32),
-            np.array([uses[i][0] for i in sent], dtype=np.int64),
-            np.array([sent_tau[i] for i in sent], dtype=np.int8),
-            np.array([offset_of.get(i, 0) for i in sent], dtype=np.int32),
-        )
+            # the nominal occurrence this use belongs to, then the same one a frame later
+            centre = [g + (nom - g % n + n // 2) % n - n // 2 + n for nom in nominal]
+            new_g = self._assign(rs, rj, nominal, centre, delta, g + 1).tolist()
+            for (_, _, _, kk), gn in zip(group, new_g, strict=True):
+                if kk >= 0:
+                    tx.offset[kk] = gn - g
 
     def hear(
         self,
@@ -556,5 +598,8 @@ class SotdmaMac:
             ann = ann_tx[link_tx].nonzero()[0]
             gt = g[link_tx[ann]] + offset[link_tx[ann]].astype(np.int64)
             cell = rx[ann].astype(np.int64) * n + gt % n
-            np.maximum.at(mu, cell, (gt // n).astype(np.int32))
+            # a newly announced slot is held for at least timeout_min_frames more frames (its own timeout is
+            # drawn from U{min..max} and first announced when it is used): marking it for its first frame only
+            # let others pick it for the frame after, before its first use told them the timeout
+            np.maximum.at(mu, cell, (gt // n + self.p.timeout_min_frames).astype(np.int32))
             md[cell] = dist_m[ann]

@@ -114,6 +114,7 @@ def test_continuous_operation_counts_down_then_reselects_in_the_same_interval():
     for f in range(5):
         pending[:] = True
         tx = mac.transmissions(f * n, (f + 1) * n, pending)
+        mac.resolve(tx)  # nobody else on the air: the reselection sees an empty map
         mine = tx.g[tx.g % n == 500] if f < 3 else tx.g
         seen.append((f, tx.timeout.tolist(), tx.offset.tolist(), (tx.g % n).tolist(), mine.tolist()))
     # frames 0..2 use slot 500 with timeouts 2, 1, 0; the last use announces the offset to the new slot
@@ -203,3 +204,45 @@ def test_hidden_terminal_resolves_within_the_timeout_for_most_seeds():
         dmg = [f for f, _, o in rows if o == DAMAGED]
         resolved += bool(dmg) and max(dmg) <= f0 + 2
     assert resolved >= 7
+
+
+def _two_choosers(order_aware: bool) -> tuple[int, int]:
+    """Stations 0 and 1 (in range of each other) both reach timeout 0 in one window, at slots 10 and 12, with
+    overlapping selection intervals in which one slot is free; every other slot is held by far stations."""
+    n = 100
+    p = SotdmaParams(n_slots=n, listen_frames=0, min_candidates=1, selection_interval_frac=0.1)
+    mac = SotdmaMac(p, n, 2, np.random.default_rng(0))
+    mac.start(np.array([0, 1]), 0)
+    mac.rate[:] = 1
+    mac.enter(0)
+    mac.force_reservation(0, 0, 10, 10, timeout=0)
+    mac.force_reservation(1, 0, 12, 12, timeout=0)
+    mac.res_nominal[0, 0], mac.res_nominal[1, 0] = 10, 12
+    mac.first_frame_end_g[:] = 0
+    mac.map_until[:] = 99  # reserved for a long time by stations 900 m away ...
+    mac.map_dist[:] = 900.0
+    mac.map_until[:, 15] = -1  # ... except slot 15, free in both intervals (0-20 and 2-22)
+    pending = np.array([True, True])
+    tx = mac.transmissions(0, 50, pending)  # one window holds both uses
+    assert tx.g.tolist() == [10, 12] and tx.offset.tolist() == [0, 0]  # the choices are still open
+
+    def decoded_by(stations):  # each station decodes the other's transmission, 50 m away
+        rx = [s for s in stations.tolist() for t in (0, 1) if t != s]
+        lt = [1 - s for s in stations.tolist()]
+        return np.array(rx), np.array(lt), np.full(len(rx), 50.0, dtype=np.float32)
+
+    mac.resolve(tx, decoded_by if order_aware else None)
+    return int(mac.res_next_g[0, 0]), int(mac.res_next_g[1, 0])
+
+
+def test_a_reservation_made_earlier_in_the_step_is_seen_by_later_choosers():
+    a, b = _two_choosers(order_aware=True)
+    assert a == n_plus(15)  # station 0 chooses first (slot 10): the one free slot, a frame later
+    assert b != a  # station 1 (slot 12) heard station 0's announcement at slot 10: slot 15 is taken
+    # without hearing it (the maps as they were at the start of the step) both take slot 15
+    a0, b0 = _two_choosers(order_aware=False)
+    assert a0 == b0 == n_plus(15)
+
+
+def n_plus(slot: int, n: int = 100) -> int:
+    return n + slot
