@@ -247,6 +247,14 @@ def test_run_refuses_before_building_anything(tmp_path, small_map, args, words):
     assert _scenarios() == before  # no scenario built (a too-large seed used to leave a broken one)
 
 
+def test_gui_with_a_dead_display_is_refused_at_once(tmp_path, small_map):
+    """A DISPLAY left over from a closed session: one line naming it, not a minute of TraCI retries."""
+    proc = cosim_here("run", "--map", small_map, "--duration", "3", "--gui", "--out", tmp_path / "o",
+                      env={"DISPLAY": ":987", "WAYLAND_DISPLAY": None})  # fmt: skip
+    one_line(proc, "--gui (sumo-gui) needs a display, but no display server answers at DISPLAY=:987")
+    assert not (tmp_path / "o").exists()
+
+
 def test_seed_in_a_config_file_is_checked_too(tmp_path, small_map):
     cfg = tmp_path / "c.yaml"
     cfg.write_text(f"seed: {2**40}\nscenario: {{map: {small_map}}}\n")
