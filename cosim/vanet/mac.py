@@ -1,0 +1,237 @@
+"""The medium-access interface every MAC implements (SOTDMA, IEEE 802.11p EDCA, C-V2X mode 4 SB-SPS).
+
+One call per base step (``Mac.step``). The MAC is given
+
+* the window [t0_us, t0_us + dt_us) and the stations active in it: their keys (World slots, the index of
+  every per-station state array the MAC keeps), positions, and which of them hold a CAM waiting to be sent
+  (its size in bytes and generation time);
+* a link budget: ``link(tx_xy (T,2), rx_xy (M,2)) -> LinkPowers`` with the received power [dBm] of every
+  (transmitter, receiver) pair after path loss and shadowing (-inf: blocked or out of range) and whether the
+  pair lies within the communication range by path loss alone (those links are reported, as the aether
+  reports them). ``aether_link_budget`` builds one from the shared ``channel.Aether``; tests pass a plain
+  function of the distance.
+
+and returns a ``MacOutput``: the transmissions (station, start [us], duration [us], resource), the outcome
+of every reported (transmission, receiver) link (``OUTCOME_NAMES`` of the channel: ok, below_sensitivity,
+shadowed, collided = half duplex, damaged = interference) and the busy time each station sensed in the
+window (channel busy ratio = busy_us / dt_us).
+
+Within a window, each MAC decides in the order of its own microsecond / subframe times: what a station
+senses earlier in the window shapes what it does later in it (no lockstep artefacts).
+
+The reception rule both new MACs share (``sinr_threshold_db``) follows the PHY abstraction of Wu,
+Bartoletti, Martinez, Bazzi, "A Methodology for Abstracting the Physical Layer of Direct V2X Communications
+Technologies", Sensors 22(23):9330, 2022 (the one WiLabV2Xsim uses): the minimum SINR is the Shannon
+SINR of the frame's effective spectral efficiency divided by an implementation loss of 0.37 (their value
+for both 802.11p and LTE-V2X): ``sinr_min = 2^(eta / 0.37) - 1``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from cosim.vanet.channel import BELOW_SENSITIVITY, COLLIDED, DAMAGED, OK, OUTCOME_NAMES, SHADOWED
+
+__all__ = [
+    "BELOW_SENSITIVITY",
+    "COLLIDED",
+    "DAMAGED",
+    "HALF_DUPLEX",
+    "INTERFERENCE",
+    "IMPLEMENTATION_LOSS",
+    "LinkPowers",
+    "Mac",
+    "MacInput",
+    "MacOutput",
+    "OK",
+    "OUTCOME_NAMES",
+    "SHADOWED",
+    "aether_link_budget",
+    "distance_link_budget",
+    "shannon_sinr_threshold_db",
+]
+
+HALF_DUPLEX = COLLIDED  # the receiver was itself transmitting during the frame
+INTERFERENCE = DAMAGED  # SINR below the threshold (or a missed preamble: 802.11p receiver already locked)
+
+# Wu et al., Sensors 22(23):9330 (2022), Sec. 4: implementation loss of both 802.11p and LTE-V2X
+IMPLEMENTATION_LOSS = 0.37
+
+
+def shannon_sinr_threshold_db(bits: float, duration_s: float, bandwidth_hz: float) -> float:
+    """Minimum SINR [dB] of a frame of ``bits`` occupying ``bandwidth_hz`` for ``duration_s`` (Wu et al.)."""
+    eta = bits / duration_s / bandwidth_hz  # effective spectral efficiency [bit/s/Hz]
+    return 10.0 * math.log10(2.0 ** (eta / IMPLEMENTATION_LOSS) - 1.0)
+
+
+@dataclass
+class LinkPowers:
+    """Link budget of T transmitters at M receivers."""
+
+    power_dbm: np.ndarray  # (T, M) float32 received power after shadowing [dBm]; -inf: none
+    in_range: np.ndarray  # (T, M) bool within the communication range by path loss alone (reported links)
+
+
+LinkBudget = Callable[[np.ndarray, np.ndarray], LinkPowers]
+
+
+@dataclass
+class MacInput:
+    """What a MAC sees of one base step; per-station arrays have shape (N,) over the active stations."""
+
+    t0_us: int  # window start [us]
+    dt_us: int  # window length [us]
+    stations: np.ndarray  # (N,) int64 station keys (World slots), ascending, unique
+    xy: np.ndarray  # (N, 2) float64 antenna positions [m]
+    pending: np.ndarray  # (N,) bool a CAM waits to be sent
+    size_bytes: np.ndarray  # (N,) int CAM size [B] (facilities layer; lower-layer headers are the MAC's)
+    gen_us: np.ndarray  # (N,) int64 CAM generation time [us]
+    link: LinkBudget
+    sensitivity_dbm: float = -89.0  # shared receiver sensitivity [dBm] (channel.sensitivity_dbm)
+    noise_dbm: float = -110.0  # noise floor over the 10-MHz channel [dBm] (channel.noise_dbm)
+
+
+@dataclass
+class MacOutput:
+    """What a MAC did in one base step. Transmissions are sorted by start time, then station."""
+
+    tx_station: np.ndarray  # (T,) int64 index into MacInput.stations
+    tx_start_us: np.ndarray  # (T,) int64 start of the frame [us]
+    tx_duration_us: np.ndarray  # (T,) int32 air time [us]
+    tx_resource: (
+        np.ndarray
+    )  # (T,) int64 MAC resource (SOTDMA: global slot; 802.11p: -1; C-V2X: sf * C + subch)
+    rx_tx: np.ndarray  # (L,) int64 index into the transmissions, reported links sorted by (tx, rx)
+    rx_rx: np.ndarray  # (L,) int64 index into MacInput.stations
+    rx_power_dbm: np.ndarray  # (L,) float32 received power [dBm]
+    rx_outcome: np.ndarray  # (L,) uint8 channel OUTCOME_NAMES code
+    busy_us: np.ndarray  # (N,) float64 time the station sensed the medium busy in the window [us]
+    sent: np.ndarray  # (N,) bool the station's pending CAM went on the air in this window
+    stats: dict[str, float] = field(default_factory=dict)
+
+    def decoded(self) -> tuple[np.ndarray, np.ndarray]:
+        """(transmission index, receiver index) of every decoded frame."""
+        ok = self.rx_outcome == OK
+        return self.rx_tx[ok], self.rx_rx[ok]
+
+    def outcome_counts(self) -> dict[str, int]:
+        c = np.bincount(self.rx_outcome.astype(np.int64), minlength=len(OUTCOME_NAMES))
+        return {n: int(v) for n, v in zip(OUTCOME_NAMES, c, strict=False)}
+
+
+class Mac(Protocol):
+    """Per-station state is kept in arrays indexed by station key (World slot)."""
+
+    name: str
+
+    def ensure_capacity(self, capacity: int) -> None: ...
+
+    def start(self, stations: np.ndarray, t_us: int) -> None:
+        """New stations (fresh state: a new vehicle in the slot)."""
+
+    def stop(self, stations: np.ndarray) -> None:
+        """Stations that left."""
+
+    def step(self, inp: MacInput) -> MacOutput: ...
+
+
+def empty_output(n: int) -> MacOutput:
+    e = np.zeros(0, dtype=np.int64)
+    return MacOutput(
+        e,
+        e.copy(),
+        np.zeros(0, np.int32),
+        e.copy(),
+        e.copy(),
+        e.copy(),
+        np.zeros(0, np.float32),
+        np.zeros(0, np.uint8),
+        np.zeros(n),
+        np.zeros(n, dtype=bool),
+    )
+
+
+# ------------------------------------------------------------------------------------------------------------
+# link budgets
+# ------------------------------------------------------------------------------------------------------------
+def _pairwise_d2(tx_xy: np.ndarray, rx_xy: np.ndarray) -> np.ndarray:
+    tx = np.asarray(tx_xy, dtype=np.float64)
+    rx = np.asarray(rx_xy, dtype=np.float64)
+    dx = rx[None, :, 0] - tx[:, None, 0]
+    dy = rx[None, :, 1] - tx[:, None, 1]
+    return dx * dx + dy * dy
+
+
+def distance_link_budget(
+    power_of_distance: Callable[[np.ndarray], np.ndarray], comm_range_m: float
+) -> LinkBudget:
+    """A link budget from a function of the distance [m] -> received power [dBm] (tests, synthetic layouts).
+    A transmitter never reaches itself (distance 0 pairs are -inf)."""
+
+    def link(tx_xy: np.ndarray, rx_xy: np.ndarray) -> LinkPowers:
+        d = np.sqrt(_pairwise_d2(tx_xy, rx_xy))
+        p = np.asarray(power_of_distance(np.maximum(d, 1e-3)), dtype=np.float32)
+        p = np.where(d > 1e-6, p, np.float32(-np.inf)).astype(np.float32)
+        return LinkPowers(p, (d <= comm_range_m) & (d > 1e-6))
+
+    return link
+
+
+def aether_link_budget(aether, floor_dbm: float = -110.0) -> LinkBudget:
+    """The link budget of the shared ``channel.Aether``: its path loss and building shadowing, exactly as its
+    own links use them. Pairs whose power before shadowing is below ``floor_dbm`` are -inf: signals under
+    -110 dBm are ignored altogether, as Veins' ``minPowerLevel = -110dBm`` (its example omnetpp.ini) does;
+    that spares the shadowing lookups of distant pairs."""
+    p = aether.p
+    tx_dbm = np.float32(p.tx_power_dbm)
+    comm2 = np.float32(aether.comm_range_m**2)
+
+    def link(tx_xy: np.ndarray, rx_xy: np.ndarray) -> LinkPowers:
+        tx_xy = np.asarray(tx_xy, dtype=np.float64)
+        rx_xy = np.asarray(rx_xy, dtype=np.float64)
+        d2 = _pairwise_d2(tx_xy, rx_xy).astype(np.float32)
+        p0 = tx_dbm - aether.path_loss.loss_db_from_d2(d2)
+        self_pair = d2 < np.float32(1e-6)
+        cand = (p0 >= np.float32(floor_dbm)) & ~self_pair
+        power = np.where(cand, p0, np.float32(-np.inf)).astype(np.float32)
+        shadow = aether.shadow
+        if cand.any() and type(shadow).__name__ != "NoShadowing":
+            rx_x = rx_xy[:, 0].astype(np.float32)
+            rx_y = rx_xy[:, 1].astype(np.float32)
+            if hasattr(shadow, "blocked_pairs") and getattr(shadow, "model", None) == "los":
+                blocked = shadow.blocked_pairs(tx_xy, cand, rx_x, rx_y)
+                power[blocked] = -np.inf
+            else:
+                flat = np.flatnonzero(cand)
+                ti = flat // d2.shape[1]
+                ri = flat - ti * d2.shape[1]
+                loss = shadow.loss_db(tx_xy, ti, rx_x[ri], rx_y[ri])
+                power.reshape(-1)[flat] = (p0.reshape(-1)[flat] - loss).astype(np.float32)
+        in_range = (d2 <= comm2) & ~self_pair
+        if p.path_loss == "two_ray":  # not monotone: the range test is the power test
+            in_range = (p0 >= np.float32(p.sensitivity_dbm)) & ~self_pair
+        return LinkPowers(power, in_range)
+
+    return link
+
+
+# ------------------------------------------------------------------------------------------------------------
+# shared helpers
+# ------------------------------------------------------------------------------------------------------------
+def dbm_to_mw(x: np.ndarray) -> np.ndarray:
+    with np.errstate(over="ignore"):
+        return np.power(10.0, np.asarray(x, dtype=np.float64) / 10.0)
+
+
+def report_links(
+    in_range: np.ndarray, power: np.ndarray, sensitivity_dbm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Reported links (T, M) -> (tx, rx) index arrays sorted by (tx, rx): in range by path loss, or above the
+    sensitivity (a two-ray null or a shadowed link is reported as what it is)."""
+    rep = in_range | (power >= np.float32(sensitivity_dbm))
+    return np.nonzero(rep)
