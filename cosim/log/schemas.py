@@ -115,8 +115,10 @@ VANET_RX = _obj(
 VANET_LOAD = _obj(
     "cosim.VanetLoad",
     {"frame": cols(INT), "t_s": cols(NUM), "n_slots": cols(INT), "busy_slots": cols(INT),
-     "multi_tx_slots": cols(INT), "tx_count": cols(INT), "busy_ratio": cols(NUM), "airtime_ratio": cols(NUM)},
-    description="Channel load, one row per completed SOTDMA frame.",
+     "multi_tx_slots": cols(INT), "tx_count": cols(INT), "busy_ratio": cols(NUM), "airtime_ratio": cols(NUM),
+     "cbr_mean": cols(nullable(NUM)), "cbr_p95": cols(nullable(NUM)), "cbr_ego": cols(nullable(NUM))},
+    description="Channel load, one row per completed SOTDMA frame: map-wide slot use (busy_ratio, "
+                "airtime_ratio) and the channel busy ratio the stations sense (cbr_*; null without stations / ego).",
 )  # fmt: skip
 VANET_STEP = _obj(
     "cosim.VanetStep",

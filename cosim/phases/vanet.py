@@ -8,7 +8,17 @@ from cosim.log.columns import json_columns
 from cosim.scenario.buildings import load_buildings
 from cosim.vanet import VanetLayer, VanetParams
 
-_DECIMALS = {"distance_m": 2, "rx_power_dbm": 2, "t_s": 4, "gen_t_s": 4, "busy_ratio": 4, "airtime_ratio": 4}
+_DECIMALS = {
+    "distance_m": 2,
+    "rx_power_dbm": 2,
+    "t_s": 4,
+    "gen_t_s": 4,
+    "busy_ratio": 4,
+    "airtime_ratio": 4,
+    "cbr_mean": 4,
+    "cbr_p95": 4,
+    "cbr_ego": 4,
+}
 
 
 class VanetPhase:

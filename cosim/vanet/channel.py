@@ -41,6 +41,15 @@ from typing import Literal
 import numpy as np
 import shapely
 
+from cosim.vanet.pathloss import (
+    PATH_LOSS_MODELS,
+    PathLoss,
+    ShadowingField,
+    default_shadowing,
+    nlos_shadowing_sigma_db,
+)
+from cosim.vanet.receiver import ReceiverParams, capture
+
 OK, BELOW_SENSITIVITY, SHADOWED, COLLIDED, DAMAGED = 0, 1, 2, 3, 4
 OUTCOME_NAMES = ("ok", "below_sensitivity", "shadowed", "collided", "damaged")
 
@@ -58,35 +67,55 @@ def mw_to_dbm(mw):
 
 @dataclass(frozen=True)
 class ChannelParams:
-    """Radio link budget, shadowing and interference rules."""
+    """Radio link budget, path loss, shadowing and the receiver (``receiver``: cosim.vanet.receiver)."""
 
-    frequency_hz: float = 5.89e9  # carrier [Hz]
-    tx_power_mw: float = 20.0  # transmit power [mW]
-    sensitivity_dbm: float = -89.0  # receiver sensitivity [dBm]
-    noise_dbm: float = -110.0  # thermal noise floor [dBm]
-    path_loss: Literal["free_space", "two_ray", "log_distance"] = "free_space"
-    antenna_height_m: float = 1.5  # both antennas, two-ray model [m]
+    frequency_hz: float = 5.89e9  # carrier [Hz] (ITS-G5 control channel, ETSI EN 302 663)
+    tx_power_mw: float = 20.0  # transmit power [mW] (13 dBm)
+    path_loss: Literal["free_space", "two_ray", "log_distance", "winner_b1", "3gpp_highway", "3gpp_urban"] = (
+        "free_space"  # see cosim.vanet.pathloss
+    )
+    antenna_height_m: float = 1.5  # both antennas (two-ray, WINNER+ B1) [m]
     ground_permittivity: float = 1.02  # relative permittivity epsilon_r of the ground, two-ray model
     log_distance_exponent: float = 2.5  # path-loss exponent n, log-distance model
     log_distance_ref_m: float = 1.0  # reference distance d0 [m]
-    shadowing: Literal["none", "los", "veins"] = "los"
+    lognormal_sigma_db: float | None = None  # log-normal shadowing sigma [dB]; None: the model's (pathloss)
+    lognormal_decorrelation_m: float | None = None  # its decorrelation distance [m]; None: the model's
+    shadowing: Literal["none", "los", "veins"] = "los"  # buildings
     wall_db: float = 9.0  # Veins model: loss per wall crossed [dB]
     per_meter_db: float = 0.4  # Veins model: loss per metre inside a building [dB/m]
     shadow_method: Literal["polar", "exact"] = "polar"
     polar_lattice_m: float = 4.0  # transmitter lattice of the cached visibility maps [m]
     polar_bins: int = 1024  # directions per visibility map
     polar_cache_mb: float = 256.0  # flush the visibility cache above this size [MB]
-    interference: Literal["paper", "sinr"] = "paper"
+    # the receiver (defaults and sources: cosim.vanet.receiver)
+    interference: Literal["paper", "sinr"] = "sinr"  # same-slot rule: SINR capture, or the paper's overlap
+    sensitivity_dbm: float = -89.0  # receiver sensitivity [dBm]
+    bandwidth_hz: float = 10e6  # channel bandwidth [Hz]
+    noise_figure_db: float = 9.0  # receiver noise figure [dB]
+    noise_dbm: float | None = (
+        None  # noise floor [dBm]; None: -174 dBm/Hz + 10 log10(bandwidth) + noise figure
+    )
+    cs_threshold_dbm: float = -85.0  # carrier sense / energy detection threshold (channel busy ratio) [dBm]
     capture_threshold_db: float = 6.0  # SINR rule: minimum SINR to decode [dB]
-    interference_floor_dbm: float = -99.0  # SINR rule: weaker interferers (before shadowing) ignored [dBm]
+    interference_floor_dbm: float | None = (
+        None  # SINR rule: weaker senders not summed [dBm]; None: noise - 20
+    )
 
     def __post_init__(self) -> None:
         if not self.frequency_hz > 0 or not self.tx_power_mw > 0:
             raise ValueError("channel.frequency_hz and channel.tx_power_mw must be > 0")
+        if self.path_loss not in PATH_LOSS_MODELS:
+            raise ValueError(f"channel.path_loss must be one of {', '.join(PATH_LOSS_MODELS)}")
         if not self.antenna_height_m > 0 or not self.ground_permittivity >= 1.0:
             raise ValueError("channel: antenna_height_m must be > 0 and ground_permittivity >= 1")
+        if self.path_loss == "winner_b1" and not self.antenna_height_m > 1.0:
+            raise ValueError("channel: WINNER+ B1 needs antenna_height_m > 1 (effective height h - 1 m)")
         if not self.log_distance_exponent > 0 or not self.log_distance_ref_m > 0:
             raise ValueError("channel: log_distance_exponent and log_distance_ref_m must be > 0")
+        if self.lognormal_sigma_db is not None and not 0 <= self.lognormal_sigma_db <= 20:
+            raise ValueError("channel.lognormal_sigma_db must be in [0, 20] dB (or null: the model's)")
+        if self.lognormal_decorrelation_m is not None and not self.lognormal_decorrelation_m > 0:
+            raise ValueError("channel.lognormal_decorrelation_m must be > 0 (or null: the model's)")
         if self.wall_db < 0 or self.per_meter_db < 0:
             raise ValueError("channel: wall_db and per_meter_db must be >= 0")
         if not self.polar_lattice_m > 0 or self.polar_bins < 8:
@@ -95,8 +124,37 @@ class ChannelParams:
             raise ValueError("channel.polar_cache_mb must be >= 16")
         if self.capture_threshold_db < 0:
             raise ValueError("channel.capture_threshold_db must be >= 0 (one decoded message per slot)")
+        if not self.bandwidth_hz > 0 or self.noise_figure_db < 0:
+            raise ValueError("channel: bandwidth_hz must be > 0 and noise_figure_db >= 0")
         if self.tx_power_dbm <= self.sensitivity_dbm:
             raise ValueError("channel: tx power must exceed the sensitivity, or nothing is ever received")
+
+    @property
+    def receiver(self) -> ReceiverParams:
+        return ReceiverParams(
+            rule=self.interference,
+            bandwidth_hz=self.bandwidth_hz,
+            noise_figure_db=self.noise_figure_db,
+            noise_dbm=self.noise_dbm,
+            sensitivity_dbm=self.sensitivity_dbm,
+            cs_threshold_dbm=self.cs_threshold_dbm,
+            capture_threshold_db=self.capture_threshold_db,
+            interference_floor_dbm=self.interference_floor_dbm,
+        )
+
+    @property
+    def shadowing_sigma_db(self) -> float:
+        """Log-normal shadowing sigma in use [dB] (LOS)."""
+        return (
+            default_shadowing(self.path_loss)[0]
+            if self.lognormal_sigma_db is None
+            else self.lognormal_sigma_db
+        )
+
+    @property
+    def shadowing_decorrelation_m(self) -> float:
+        d = self.lognormal_decorrelation_m
+        return default_shadowing(self.path_loss)[1] if d is None else d
 
     @property
     def tx_power_dbm(self) -> float:
@@ -105,74 +163,6 @@ class ChannelParams:
     @property
     def wavelength_m(self) -> float:
         return SPEED_OF_LIGHT_MPS / self.frequency_hz
-
-
-# ------------------------------------------------------------------------------------------------------------
-# path loss
-# ------------------------------------------------------------------------------------------------------------
-class PathLoss:
-    """Deterministic path loss [dB] as a function of the ground distance [m]."""
-
-    def __init__(self, params: ChannelParams):
-        self.p = params
-        self.lam = params.wavelength_m
-
-    def free_space_db(self, d_m: np.ndarray) -> np.ndarray:
-        d = np.maximum(np.asarray(d_m, dtype=np.float64), 1.0)
-        return 20.0 * np.log10(4.0 * np.pi * d / self.lam)
-
-    def loss_db(self, d_m: np.ndarray) -> np.ndarray:
-        p = self.p
-        d = np.maximum(np.asarray(d_m, dtype=np.float64), 1.0)
-        if p.path_loss == "free_space":
-            return self.free_space_db(d)
-        if p.path_loss == "log_distance":
-            d0 = p.log_distance_ref_m
-            beyond = self.free_space_db(d0) + 10.0 * p.log_distance_exponent * np.log10(d / d0)
-            return np.where(d > d0, beyond, self.free_space_db(d))
-        # two-ray interference (Sommer, Joerer, Dressler 2012), as in Veins' TwoRayInterferenceModel
-        h = p.antenna_height_m
-        d_dir = d  # equal antenna heights
-        d_ref = np.sqrt(d * d + (2.0 * h) ** 2)
-        sin_t = 2.0 * h / d_ref
-        cos_t = d / d_ref
-        root = np.sqrt(p.ground_permittivity - cos_t * cos_t)
-        gamma = (sin_t - root) / (sin_t + root)
-        phi = 2.0 * np.pi / self.lam * (d_dir - d_ref)
-        mag = np.abs(1.0 + gamma * np.exp(1j * phi))
-        return 20.0 * np.log10(4.0 * np.pi * d / self.lam) - 20.0 * np.log10(np.maximum(mag, 1e-12))
-
-    def loss_db_from_d2(self, d2_m2: np.ndarray) -> np.ndarray:
-        """``loss_db`` from squared distances, in float32 for free space / log-distance (the hot path)."""
-        p = self.p
-        if p.path_loss == "two_ray":
-            return self.loss_db(np.sqrt(d2_m2.astype(np.float64))).astype(np.float32)
-        d2 = np.maximum(d2_m2.astype(np.float32, copy=False), np.float32(1.0))
-        fs1 = np.float32(20.0 * np.log10(4.0 * np.pi / self.lam))  # free-space loss at 1 m
-        if p.path_loss == "free_space":
-            return fs1 + np.float32(10.0) * np.log10(d2)
-        d0 = p.log_distance_ref_m
-        beyond = np.float32(self.free_space_db(d0)) + np.float32(5.0 * p.log_distance_exponent) * np.log10(
-            d2 / np.float32(d0 * d0)
-        )
-        return np.where(d2 > np.float32(d0 * d0), beyond, fs1 + np.float32(10.0) * np.log10(d2))
-
-    def max_range_m(self, budget_db: float) -> float:
-        """Largest distance at which the path loss can still be <= budget_db [m]."""
-        fs = self.lam / (4.0 * np.pi) * 10.0 ** (budget_db / 20.0)
-        p = self.p
-        if p.path_loss == "free_space":
-            return float(fs)
-        if p.path_loss == "log_distance":
-            d0 = p.log_distance_ref_m
-            if fs <= d0:
-                return float(fs)
-            extra = budget_db - float(self.free_space_db(d0))
-            return float(d0 * 10.0 ** (extra / (10.0 * p.log_distance_exponent)))
-        # two-ray: the reflected ray adds at most +6 dB, so the range is below 2x free space; scan finely
-        d = np.arange(1.0, 2.0 * fs + 10.0, 0.25)
-        ok = np.flatnonzero(self.loss_db(d) <= budget_db)
-        return float(d[ok[-1]] + 0.25) if ok.size else 1.0
 
 
 def pseudo_angle(x: np.ndarray, y: np.ndarray, out=None, tmp=None, neg=None) -> np.ndarray:
@@ -727,6 +717,8 @@ class _Block:
     p0: np.ndarray | None  # float32 power before shadowing [dBm], when computed for every pair
     loss: np.ndarray | None  # shadowing loss [dB] (None: ``blocked`` or no shadowing)
     blocked: np.ndarray | None  # line of sight blocked (line-of-sight fast path)
+    sensed: np.ndarray | None = None  # (slots, M) bool: the receiver senses the slot busy (CS threshold)
+    lg: np.ndarray | None = None  # (T,) the block-local slot of each row
 
 
 class Links:
@@ -764,6 +756,22 @@ class Links:
             order = np.lexsort((ri, ti))
             ti, ri, d = ti[order], ri[order], d[order]
         return ti, ri, d
+
+    def sensed_busy_us(self, air_us: np.ndarray) -> np.ndarray:
+        """Per receiver (n_rx,), the time it senses the channel busy [us]: the longest air time of each slot
+        whose energy reaches the carrier-sense threshold there (air_us (n_tx,) per transmission)."""
+        busy = np.zeros(self.n_rx)
+        air_us = np.asarray(air_us, dtype=np.float64)
+        for b in self.blocks:
+            rows = air_us if b.t is None else air_us[b.t]
+            g_air = np.zeros(b.sensed.shape[0])
+            np.maximum.at(g_air, b.lg, rows)
+            val = g_air @ b.sensed
+            if b.m is None:
+                busy += val
+            else:
+                busy[b.m] = np.maximum(busy[b.m], val)  # a receiver lies in one block
+        return busy
 
     def decoded_at(self, receivers: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``decoded()`` restricted to the sorted unique receiver indices ``receivers`` (a column gather)."""
@@ -863,17 +871,39 @@ class Aether:
 
     max_cells = 4_000_000
 
-    def __init__(self, params: ChannelParams, buildings: Sequence[shapely.Polygon] | Buildings):
+    # log-normal shadowing is cut at this many sigma when sizing the ranges (a 3e-5 tail is left out)
+    SHADOWING_TAIL_SIGMA = 4.0
+
+    def __init__(
+        self,
+        params: ChannelParams,
+        buildings: Sequence[shapely.Polygon] | Buildings,
+        rng: np.random.Generator | None = None,
+    ):
+        """``rng`` draws the log-normal shadowing field (only when its sigma > 0; None: a fixed seed 0)."""
         self.p = params
+        self.rx = params.receiver
         self.buildings = buildings if isinstance(buildings, Buildings) else Buildings(buildings)
         self.path_loss = PathLoss(params)
-        budget = params.tx_power_dbm - params.sensitivity_dbm
+        sigma = params.shadowing_sigma_db
+        self.field = None
+        if sigma > 0:
+            rng = rng if rng is not None else np.random.default_rng(0)
+            self.field = ShadowingField.draw(sigma, params.shadowing_decorrelation_m, rng)
+        margin = self.SHADOWING_TAIL_SIGMA * sigma * (nlos_shadowing_sigma_db(params.path_loss) / 3.0 or 1.0)
+        budget = params.tx_power_dbm - params.sensitivity_dbm + margin
         self.comm_range_m = self.path_loss.max_range_m(budget)
         floor = params.sensitivity_dbm
         if params.interference == "sinr":
-            floor = min(floor, params.interference_floor_dbm)
+            floor = min(floor, self.rx.floor_dbm)
         self.floor_dbm = floor
-        self.link_range_m = max(self.path_loss.max_range_m(params.tx_power_dbm - floor), self.comm_range_m)
+        self.link_range_m = max(
+            self.path_loss.max_range_m(params.tx_power_dbm - floor + margin), self.comm_range_m
+        )
+        # models with their own NLOS formula use it for links that buildings block (``los`` shadowing)
+        self._nlos = self.path_loss.has_nlos and params.shadowing == "los"
+        # carrier sense from one sender alone: the distance test of the line-of-sight fast path
+        self._cs_d2 = self.path_loss.max_range_m(params.tx_power_dbm - params.cs_threshold_dbm) ** 2
         if params.shadowing == "none" or len(self.buildings) == 0:
             self.shadow = NoShadowing()
         elif params.shadow_method == "exact":
@@ -898,7 +928,12 @@ class Aether:
                 max_loss,
             )
         # links beyond the communication range only matter as interference, and two-ray has nulls inside
-        self._general = self.link_range_m > self.comm_range_m or params.path_loss == "two_ray"
+        self._general = (
+            self.link_range_m > self.comm_range_m
+            or params.path_loss == "two_ray"
+            or self.field is not None
+            or self._nlos
+        )
         # paper rule with a 0 / inf shadowing loss and a monotone path loss: the power is needed only for
         # the links logged, and "above the sensitivity" is a distance test (see _above_sensitivity)
         self._fast = (
@@ -1037,12 +1072,26 @@ class Aether:
         loss = blocked = p0 = None
         if self._general:
             p0 = np.float32(p.tx_power_dbm) - self.path_loss.loss_db_from_d2(d2)
+            s_db = None
+            if self.field is not None:  # log-normal shadowing: (X(tx) + X(rx)) / sqrt(2)
+                x_tx = self.field.at(tx_xy)
+                x_rx = self.field.at(np.stack([rx_x, rx_y], axis=1).astype(np.float64))
+                s_db = self.field.link_db(x_tx[:, None], x_rx[None, :]).astype(np.float32)
+                p0 = p0 + s_db
             relevant = p0 >= self.floor_dbm
             logged = cand & (np.sqrt(d2) <= self.comm_range_m)
             keep = cand & (relevant | logged)
             loss = np.full(d2.shape, np.inf, dtype=np.float32)
             need = np.flatnonzero(cand & relevant)
             loss.reshape(-1)[need] = self._sparse_loss(tx_xy, need, n_rx, rx_x, rx_y)
+            if self._nlos:  # blocked line of sight: the model's NLOS formula (and NLOS shadowing) instead
+                nl = need[np.isinf(loss.reshape(-1)[need])]
+                if nl.size:
+                    d = np.sqrt(d2.reshape(-1)[nl].astype(np.float64))
+                    extra = self.path_loss.nlos_db(d) - self.path_loss.loss_db(d)
+                    if s_db is not None:
+                        extra -= s_db.reshape(-1)[nl] * (nlos_shadowing_sigma_db(p.path_loss) / 3.0 - 1.0)
+                    loss.reshape(-1)[nl] = extra
             pw = p0 - loss
             above = p0 >= p.sensitivity_dbm
             reach = keep & (pw >= p.sensitivity_dbm)
@@ -1100,14 +1149,24 @@ class Aether:
             mw = np.where(keep, mw, 0.0).astype(np.float64)  # bincount over the kept links, as before
             total = _slot_sums(mw if sorted_rows else mw[order], starts, np.float64)
             interf = np.maximum(total[lg] - mw, 0.0)
-            noise = float(dbm_to_mw(p.noise_dbm))
-            with np.errstate(divide="ignore"):
-                sinr_db = 10.0 * np.log10(mw / (interf + noise))
-            damaged = reach & (sinr_db < p.capture_threshold_db)
+            damaged = reach & ~capture(mw, interf, self.rx)[1]
         ok = reach & above & ~collided
         if damaged is not None:
             ok &= ~damaged
+        # carrier sense per (slot, receiver): the energy of the slot's senders at or above the CS threshold
+        if pw is not None:
+            if p.interference != "sinr":
+                e = np.where(keep & np.isfinite(pw), np.power(10.0, pw.astype(np.float64) / 10.0), 0.0)
+                total = _slot_sums(e if sorted_rows else e[order], starts, np.float64)
+            sensed = total >= 10.0 ** (p.cs_threshold_dbm / 10.0)
+        else:  # line-of-sight fast path: one sender at or above the threshold (no power computed)
+            near = cand & (d2 <= np.float32(self._cs_d2))
+            if blocked is not None:
+                near &= ~blocked
+            sensed = _slot_sums(near if sorted_rows else near[order], starts, np.int32) > 0
+        sensed &= ~sending
         b = _Block(None, None, d2, logged, above, reach, collided, damaged, ok, p0, loss, blocked)
+        b.sensed, b.lg = sensed, lg
         return b, int(np.count_nonzero(keep))
 
     def _sparse_loss(

@@ -22,7 +22,11 @@ Log topics (``VanetStepResult.columns()``), one row per item, arrays of equal le
   receiver_station_id u4, frame i8, slot i4, distance_m f4, outcome u1 (channel.OUTCOME_NAMES),
   rx_power_dbm f4 (-inf when line of sight is blocked), gen_t_s f8
 * ``/vanet/load`` (one row per completed frame): frame i8, t_s f8 (frame start), n_slots i4, busy_slots i4,
-  multi_tx_slots i4, tx_count i4, busy_ratio f4, airtime_ratio f4
+  multi_tx_slots i4, tx_count i4, busy_ratio f4, airtime_ratio f4, cbr_mean f4, cbr_p95 f4, cbr_ego f4.
+  busy_ratio / airtime_ratio are map-wide slot use; cbr_* the channel busy ratio each station senses (the
+  time the energy of a slot's senders reaches ``channel.cs_threshold_dbm`` at it, over the frame; its own
+  slots excluded): mean and 95th percentile over the stations present at the frame's end, and the ego's
+  (NaN without an ego). A station that appeared during the frame counts from then on.
 * ``/vanet/step`` (one row per step): t_s f8, n_stations i4, cams_generated i4, cams_dropped i4,
   tx_count i4, rx_count i4, links_evaluated i4
 """
@@ -98,6 +102,9 @@ LOAD_COLUMNS = {
     "tx_count": np.int32,
     "busy_ratio": np.float32,
     "airtime_ratio": np.float32,
+    "cbr_mean": np.float32,
+    "cbr_p95": np.float32,
+    "cbr_ego": np.float32,
 }
 STEP_COLUMNS = {
     "t_s": np.float64,
@@ -141,7 +148,8 @@ class VanetLayer:
     def __init__(self, params: VanetParams, buildings: Sequence[shapely.Polygon], rng: np.random.Generator):
         self.params = params
         self.rng = rng
-        self.aether = Aether(params.channel, buildings)
+        # the shadowing field has its own stream (spawned: the MAC's draws stay as they were)
+        self.aether = Aether(params.channel, buildings, rng=rng.spawn(1)[0])
         self.frame_us, self.slot_us, self.n_slots = params.sotdma.frame_layout(params.cam.max_size_bytes)
         self.frame_ms = self.frame_us // 1000
         self.cam = CamGenerator(params.cam, 1)
@@ -150,6 +158,7 @@ class VanetLayer:
         horizon = max(params.obu.table_frames * self.frame_us, round(params.obu.stale_after_s * 1e6))
         self.records = RecordStore(horizon + 2 * self.frame_us)
         self.capacity = 0
+        self._busy_us = np.zeros(0)  # per World slot: sensed-busy time in the current frame [us]
         self._ensure_capacity(1)
         self._next_station_id = 1
         self._inbox: tuple[np.ndarray, ...] | None = None
@@ -158,6 +167,8 @@ class VanetLayer:
         self._frame_acc: dict[int, list[int]] = {}  # frame -> [busy, multi, tx, airtime_us]
         self._no_load_rows = _empty(LOAD_COLUMNS)  # most steps complete no frame (zero-length: shareable)
         self._next_load_frame: int | None = None
+        self._ego_slot = -1
+        self._valid_now = np.zeros(0, dtype=np.int64)
 
     # -- capacity / stations ---------------------------------------------------------------------------------
     def _ensure_capacity(self, capacity: int) -> None:
@@ -185,6 +196,9 @@ class VanetLayer:
             pending_cam = empty_cam_arrays(capacity)
             pending_cam[:old] = self.pending_cam[:old]
             self.pending_cam = pending_cam
+        busy = np.zeros(capacity)
+        busy[: self._busy_us.size] = self._busy_us
+        self._busy_us = busy
         self.cam.ensure_capacity(capacity)
         self.mac.ensure_capacity(capacity)
         self.obu.ensure_capacity(capacity)
@@ -324,6 +338,11 @@ class VanetLayer:
         t4 = clock()
         timing["channel"] = t4 - t3
 
+        air_us = self.params.sotdma.air_times_us(rec["size_bytes"])
+        self._busy_us[active] += links.sensed_busy_us(air_us)
+        self._ego_slot = int(world.ego_slot) if world.ego_slot >= 0 and world.valid[world.ego_slot] else -1
+        self._valid_now = active
+
         # 5. slot reselections in slot order (each chooser knows what it decoded before its slot), then the
         # decoded messages: slot maps now, OBU tables next step
         def decoded_by(stations: np.ndarray):
@@ -431,6 +450,15 @@ class VanetLayer:
             return dict(self._no_load_rows)
         fr = np.array([r[0] for r in rows], dtype=np.int64)
         a = np.array([r[1] for r in rows], dtype=np.int64)
+        # the sensed busy time accumulated so far belongs to the (last) completed frame
+        cbr = self._busy_us[self._valid_now] / self.frame_us
+        ego = self._busy_us[self._ego_slot] / self.frame_us if self._ego_slot >= 0 else np.nan
+        self._busy_us[:] = 0.0
+        nan = np.full(fr.size, np.nan, dtype=np.float32)
+        mean, p95, ego_col = nan.copy(), nan.copy(), nan.copy()
+        if cbr.size:
+            mean[-1], p95[-1] = cbr.mean(), np.percentile(cbr, 95)
+        ego_col[-1] = ego
         return {
             "frame": fr,
             "t_s": fr * self.frame_us / 1e6,
@@ -440,6 +468,9 @@ class VanetLayer:
             "tx_count": a[:, 2].astype(np.int32),
             "busy_ratio": (a[:, 0] / n).astype(np.float32),
             "airtime_ratio": (a[:, 3] / self.frame_us).astype(np.float32),
+            "cbr_mean": mean,
+            "cbr_p95": p95,
+            "cbr_ego": ego_col,
         }
 
     # -- OBU access ------------------------------------------------------------------------------------------
