@@ -113,6 +113,11 @@ class MacOutput:
     busy_us: np.ndarray  # (N,) float64 time the station sensed the medium busy in the window [us]
     sent: np.ndarray  # (N,) bool the station's pending CAM went on the air in this window
     stats: dict[str, float] = field(default_factory=dict)
+    # (N,) bool the MAC took the pending CAM over, to send it in a later window (C-V2X: its reserved subframe
+    # lies beyond the window); the caller keeps a copy of the CAM and clears its pending flag. None: none.
+    taken: np.ndarray | None = None
+    # (T,) bool the transmission carries a CAM taken over in an earlier window (not the pending one). None: none.
+    tx_held: np.ndarray | None = None
 
     def decoded(self) -> tuple[np.ndarray, np.ndarray]:
         """(transmission index, receiver index) of every decoded frame."""
