@@ -188,6 +188,36 @@ def _vanet_report(args) -> int:
     return 0
 
 
+def _radio(args) -> int:
+    from cosim.vanet.radio import RadioScenario, plot, run_radio
+
+    try:
+        sc = RadioScenario(mac=args.mac, layout=args.layout, vehicles_per_km=args.vehicles_per_km,
+                           stations=args.stations, area_m=args.area_m, lanes=args.lanes, speed_kmh=args.speed_kmh,
+                           rate_hz=args.rate_hz, size_bytes=args.size_bytes, tx_dbm=args.tx_dbm,
+                           pathloss=args.pathloss, shadowing_db=args.shadowing_db, noise_dbm=args.noise_dbm,
+                           cs_dbm=args.cs_dbm, duration_s=args.duration, seed=args.seed)  # fmt: skip
+    except ValueError as exc:
+        raise CosimError(str(exc)) from None
+    out = check_dir(args.out) if args.out else None
+    result = run_radio(sc)
+    if out is not None:
+        Path(out).mkdir(parents=True, exist_ok=True)
+        (Path(out) / "radio.json").write_text(json.dumps(result, indent=1) + "\n")
+        plot(result, sc, out)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"{result['mac']}, {result['stations']} stations: cbr {result['cbr']:.3f}, shared slots "
+              f"{result['shared_slot_share']}, never sent {result['never_sent_share']:.3f}, "
+              f"IPG p95 {result['ipg_p95_s']:.3f} s")  # fmt: skip
+        for b in result["pdr"]:
+            print(f"  {b['from_m']:6.0f}-{b['to_m']:<6.0f} m  PDR {b['pdr']:.3f}  (n={b['n']})")
+        if out is not None:
+            print(f"plot and radio.json in {out}/")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from cosim.scenario.demand import DENSITY_NAMES
 
@@ -247,6 +277,33 @@ def build_parser() -> argparse.ArgumentParser:
     vr.add_argument("file", help="run.mcap")
     vr.add_argument("--out", help="directory for the plots (default: beside the log, vanet/)")
     vr.set_defaults(fn=_vanet_report)
+
+    ra = sub.add_parser(
+        "radio", help="synthetic radio calibration scenario: PDR vs distance, CBR, shared slots"
+    )
+    ra.add_argument("--mac", default="sotdma", help="medium access: sotdma (80211p, cv2x: not yet)")
+    ra.add_argument("--layout", choices=("highway", "square"), required=True)
+    dens = ra.add_mutually_exclusive_group(required=True)
+    dens.add_argument("--vehicles-per-km", type=float, help="highway density, all lanes together")
+    dens.add_argument("--stations", type=int, help="number of stations")
+    ra.add_argument("--area-m", type=float, help="square side / road length [m] (default 300 / 5000)")
+    ra.add_argument("--lanes", type=int, default=3, help="lanes per direction (highway, default 3)")
+    ra.add_argument("--speed-kmh", type=float, default=0.0, help="highway speed (default 0: standing)")
+    ra.add_argument("--rate-hz", type=float, required=True, help="CAMs per second per station")
+    ra.add_argument("--size-bytes", type=int, required=True, help="CAM size (the MAC adds its headers)")
+    ra.add_argument("--tx-dbm", type=float, required=True, help="transmit power [dBm]")
+    ra.add_argument("--pathloss", required=True,
+                    help="free-space, two-ray, log-distance, winner-b1, 3gpp-highway or 3gpp-urban")  # fmt: skip
+    ra.add_argument("--shadowing-db", type=float, help="log-normal shadowing sigma (default: the model's)")
+    ra.add_argument(
+        "--noise-dbm", type=float, help="noise floor (default: -174 dBm/Hz + 10 log10(10 MHz) + 9 dB)"
+    )
+    ra.add_argument("--cs-dbm", type=float, default=-85.0, help="carrier-sense threshold (default -85 dBm)")
+    ra.add_argument("--duration", type=_seconds, default=30.0, help="simulated seconds (first 10 s: warm-up)")
+    ra.add_argument("--seed", type=_seed, default=1)
+    ra.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    ra.add_argument("--out", help="directory for pdr_vs_distance.png and radio.json")
+    ra.set_defaults(fn=_radio)
 
     from cosim.sweep.cli import add_sweep_parser
     from cosim.world3d.cli import add_drive_parser, add_render_parser
