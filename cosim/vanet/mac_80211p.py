@@ -13,8 +13,10 @@ Sources of every constant (IEEE Std 802.11-2016 unless said otherwise):
   PSDU bits = 16 SERVICE + 8 x length + 6 tail (17.3.5.4), padded to whole symbols.
 * MAC overhead per CAM 80 B (as sotdma.py: MAC header 24, LLC/SNAP 8, GeoNetworking 40, BTP-B 4, FCS 4).
 * Carrier sense (17.3.10.6): a frame whose preamble arrives at >= -85 dBm (the minimum sensitivity of the
-  lowest rate at 10 MHz) makes CCA busy for its duration; energy detection at -65 dBm (20 dB above) is then
-  implied for single frames and not modelled for sums of weaker ones.
+  lowest rate at 10 MHz) makes CCA busy for its duration; so does a weaker frame the station can decode
+  (>= the shared sensitivity: its PHY syncs and is in RX, as ns-3's and Veins' PHYs report busy); energy
+  detection at -65 dBm (20 dB above) is then implied for single frames and not modelled for sums of weaker
+  ones. The busy time reported for the CBR counts frames at >= -85 dBm only (ETSI TS 102 687 §5.2).
 * Broadcast: no ACK, no retry, CW stays at CWmin; after every transmission a post-backoff of U{0..CWmin}
   slots (10.22.2.2) runs down while the medium is idle and frozen while it is busy.
 * Channel access (10.22.2.2-10.22.2.4, as ns-3's ChannelAccessManager does it): a frame arriving at an idle
@@ -261,7 +263,9 @@ class Mac80211p:
         draw_arr = self.rng.integers(0, cw + 1, size=n).tolist()
         draw_post = self.rng.integers(0, cw + 1, size=n).tolist()
         dur = p.air_time_us(np.asarray(inp.size_bytes, dtype=np.int64)).astype(np.int64).tolist()
-        hear_all = power >= np.float32(p.cs_threshold_dbm)  # (rows, N)
+        # a station senses a frame it can decode (its PHY syncs and reports busy, as in ns-3 and Veins) or
+        # one at or above the CCA threshold: the lower of the sensitivity and cs_threshold_dbm
+        hear_all = power >= np.float32(min(p.cs_threshold_dbm, inp.sensitivity_dbm))  # (rows, N)
         heap = []
         for k in frames.tolist():
             a = int(arrival[k])
