@@ -24,6 +24,7 @@ BENCHES = [
         ["bench.bench_core", "--seconds", "60", "--repeat", "2"],
     ),
     ("vanet", "VANET layer alone, synthetic traffic on Helsinki roads (issue: VANET)", ["bench.bench_vanet"]),
+    ("radio", "cosim radio cost per simulated second (issue 17)", ["bench.bench_radio"]),
     ("ego", "MuJoCo ego cost (issue: ego)", ["bench.bench_ego"]),
     (
         "experiment",
