@@ -12,7 +12,7 @@ from cosim.experiment.analysis import RESPONSE_PARAMETERS
 from cosim.runconfig import load_run_config
 from cosim.sweep.runner import _resolve_overrides, load_config
 from cosim.sweep.spec import load_sweep
-from tests.testpaths import ROOT
+from testpaths import ROOT  # tests/ is on sys.path (conftest.py)
 
 SWEEP = ROOT / "configs" / "sweeps" / "driver_response.yaml"
 
