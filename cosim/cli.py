@@ -177,13 +177,13 @@ def _vanet_report(args) -> int:
     import json
 
     from cosim.log import read
-    from cosim.vanet.report import vanet_report
+    from cosim.vanet.report import run_title, vanet_report
 
     out = check_dir(args.out if args.out else Path(args.file).parent / "vanet")
     log = read(args.file, topics=["/vanet/tx", "/vanet/rx", "/vanet/load", "/vanet/step"])
     if "/vanet/tx" not in log.topics:
         raise CosimError(f"{args.file} has no /vanet/* topics: the run had the radio off (vanet: null)")
-    print(json.dumps(vanet_report(log.topics, out), indent=1, default=str))
+    print(json.dumps(vanet_report(log.topics, out, title=run_title(log.metadata)), indent=1, default=str))
     print(f"plots in {out}/")
     return 0
 

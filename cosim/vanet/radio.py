@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from cosim.vanet.channel import Aether, ChannelParams
+from cosim.vanet.metrics import BAND_M, AppMetrics, hist_percentile
 from cosim.vanet.sotdma import SotdmaMac, SotdmaParams, report_rate
 
 PATHLOSS_NAMES = {  # command-line spelling -> ChannelParams.path_loss
@@ -48,7 +49,6 @@ PATHLOSS_NAMES = {  # command-line spelling -> ChannelParams.path_loss
     "3gpp-urban": "3gpp_urban",
 }
 LANE_WIDTH_M = 3.5
-BAND_M = 50.0
 
 
 @dataclass(frozen=True)
@@ -199,14 +199,10 @@ def run_radio(sc: RadioScenario, link_level: bool = False):
     started = np.zeros(n, dtype=bool)
     margin = aether.comm_range_m  # no link beyond it is ever decoded
     n_bands = int(math.ceil(aether.comm_range_m / BAND_M))
-    den = np.zeros(n_bands + 1)
-    num = np.zeros(n_bands + 1)
-    den_sent = np.zeros(n_bands + 1)
+    app = AppMetrics(n_bands, n * n)  # PDR, IPG, AoI per band (metrics.py); pair: receiver * n + sender
     generated = dropped = 0
     tx_total = tx_shared = 0
     busy_us = np.zeros(n)
-    last_rx = np.full((n, n), np.nan)
-    ipg_hist = np.zeros(10_001)  # 1-ms bins up to 10 s, last bin: longer
     for k in range(n_steps):
         t_us = k * step_ms * 1000
         counted = (
@@ -226,8 +222,7 @@ def run_radio(sc: RadioScenario, link_level: bool = False):
             dropped += int(np.count_nonzero(pending[g_idx] & (pending_gen[g_idx] >= warm_step)))
             d = np.hypot(xy[g_idx, None, 0] - xy[None, :, 0], xy[g_idx, None, 1] - xy[None, :, 1])
             ok = counted[None, :] & (d > 0)
-            b = np.minimum((d[ok] // BAND_M).astype(np.int64), n_bands)
-            den += np.bincount(b, minlength=n_bands + 1)
+            app.add_generated(d[ok])
         pending[g_idx] = True
         pending_gen[g_idx] = k
         gen_of = pending_gen.copy()
@@ -245,18 +240,12 @@ def run_radio(sc: RadioScenario, link_level: bool = False):
             s_st = tx_st[sent_meas]
             d = np.hypot(xy[s_st, None, 0] - xy[None, :, 0], xy[s_st, None, 1] - xy[None, :, 1])
             ok = counted[None, :] & (d > 0)
-            den_sent += np.bincount(
-                np.minimum((d[ok] // BAND_M).astype(np.int64), n_bands), minlength=n_bands + 1
-            )
+            app.add_sent(d[ok])
         keep = counted[lr] & (cam_gen[lt] >= warm_step) & (cam_gen[lt] < stop_gen_step)
-        b = np.minimum((dist[keep] // BAND_M).astype(np.int64), n_bands)
-        num += np.bincount(b, minlength=n_bands + 1)
-        # inter-packet gaps of (receiver, sender) pairs
-        t_rx = t_us / 1e6
-        prev = last_rx[lr, tx_st[lt]]
-        gaps = t_rx - prev[np.isfinite(prev)]
-        ipg_hist += np.bincount(np.minimum((gaps * 1000).round().astype(np.int64), 10_000), minlength=10_001)
-        last_rx[lr, tx_st[lt]] = t_rx
+        app.add_decoded(dist, keep)
+        # inter-packet gaps and ages of (receiver, sender) pairs, timed at the window start
+        gen_s = cam_gen[lt] * step_ms / 1000.0
+        app.add_deliveries(lr * n + tx_st[lt], np.full(lt.size, t_us / 1e6), gen_s, dist)
         busy_us += links.sensed_busy_us(air)
         if k < stop_gen_step and tx_g.size:
             tx_total += tx_g.size
@@ -280,18 +269,8 @@ def run_radio(sc: RadioScenario, link_level: bool = False):
         else (xy[:, 0] >= margin) & (xy[:, 0] <= sc.side_m - margin)
     )
     cbr = float(np.mean(busy_us[counted_final]) / (measured_s * 1e6)) if counted_final.any() else 0.0
-    cum = np.cumsum(ipg_hist)
-    ipg_p95 = float(np.searchsorted(cum, 0.95 * cum[-1]) / 1000.0) if cum[-1] > 0 else float("nan")
-    bands = [
-        {
-            "from_m": float(i * BAND_M),
-            "to_m": float((i + 1) * BAND_M),
-            "pdr": float(num[i] / den[i]),
-            "n": int(den[i]),
-        }
-        for i in range(n_bands)
-        if den[i] > 0
-    ]
+    ipg_p95 = hist_percentile(app.ipg_hist, 95)
+    bands = app.pdr_bands()
     result = {
         "mac": sc.mac,
         "stations": int(n),
@@ -305,17 +284,7 @@ def run_radio(sc: RadioScenario, link_level: bool = False):
     }
     if not link_level:
         return result
-    link = [
-        {
-            "from_m": float(i * BAND_M),
-            "to_m": float((i + 1) * BAND_M),
-            "pdr": float(num[i] / den_sent[i]),
-            "n": int(den_sent[i]),
-        }
-        for i in range(n_bands)
-        if den_sent[i] > 0
-    ]
-    return result, link
+    return result, app.pdr_bands(link_level=True)
 
 
 def title(sc: RadioScenario) -> str:
