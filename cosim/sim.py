@@ -269,7 +269,9 @@ class Simulation:
         progress.update(self.world.t_s, self.world.n_valid, force=True)
         progress.done()
         wall = time.perf_counter() - t0
-        return {**self.stats, "simulated_s": round(self.world.t_s, 3), "wall_s": round(wall, 2),
+        # the radio access of the run (issue 18)
+        vanet_mac = self.config.vanet.mac if self.config.vanet is not None else None
+        return {**self.stats, "vanet_mac": vanet_mac, "simulated_s": round(self.world.t_s, 3), "wall_s": round(wall, 2),
                 "real_time_factor": round(self.world.t_s / wall, 2) if wall > 0 else None,
                 "interrupted": interrupted, "health": self.health.report()}  # fmt: skip
 

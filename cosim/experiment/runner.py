@@ -89,6 +89,7 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
                     progress[part.id] = k / steps
             stats = {**sim.stats, "simulated_s": round(sim.world.t_s, 1)}
     stats["wall_s"] = round(time.perf_counter() - t_wall, 1)
+    stats["vanet_mac"] = cfg.vanet.mac if cfg.vanet is not None else None  # system B's radio access
     if progress is not None:
         progress[part.id] = 1.0
     log = Log.of_messages(pdir / "run.mcap", kept)
@@ -177,6 +178,7 @@ def _write_summary(exp: ExperimentConfig, results: list[dict], out_dir: Path, t0
     simulated = sum(r["run"]["simulated_s"] if "simulated_s" in r["run"] else 0 for r in results)
     summary = {"experiment": exp.name, "participants": results, "across": across_participants(results),
                "wall_s": round(wall, 1), "jobs": jobs, "simulated_s": simulated}  # fmt: skip
+    summary["vanet_mac"] = next((r["run"].get("vanet_mac") for r in results), None)  # issue 18
     summary["assumptions"] = response_assumptions(exp)  # which numbers rest on assumed responses to A and B
     mark_assumed(results, summary["across"], summary["assumptions"])
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1))
@@ -234,7 +236,8 @@ def _cell(v) -> str:
 def summary_markdown(summary: dict) -> str:
     lines = [f"# {summary['experiment']}", "",
              f"{len(summary['participants'])} participants, {summary['simulated_s']:.0f} simulated s in "
-             f"{summary['wall_s']:.0f} s wall ({summary['jobs']} processes).", "",
+             f"{summary['wall_s']:.0f} s wall ({summary['jobs']} processes). V2V radio access (system B): "
+             f"{summary.get('vanet_mac') or 'none'}.", "",
              "Time gap (TG) = ground truth to the vehicle ahead while following (TG < 10 s); warnings = onsets of "
              "the red level (system B) or of the perceived 'keep distance' display (system A).", ""]  # fmt: skip
     if summary.get("assumptions", {}).get("values"):

@@ -44,6 +44,8 @@ import shapely
 
 from cosim.vanet.cam import CAM_FIELDS, CamGenerator, CamParams, empty_cam_arrays
 from cosim.vanet.channel import Aether, ChannelParams
+from cosim.vanet.mac_80211p import Mac80211pParams
+from cosim.vanet.mac_cv2x import Cv2xParams
 from cosim.vanet.obu import RECORD_DTYPE, ObuParams, ObuTables, ObuView, OwnState, RecordStore
 from cosim.vanet.sotdma import SotdmaMac, SotdmaParams, report_rate
 from cosim.world import World
@@ -60,10 +62,21 @@ class VanetParams:
     rx_log: Literal["all", "ego", "none"] = (
         "ego"  # which receptions go to /vanet/rx ("all": ~10^6 rows/s at 1000)
     )
+    # medium access (issue 18): SOTDMA (the paper), IEEE 802.11p EDCA (mac_80211p) or C-V2X mode 4 SB-SPS
+    # (mac_cv2x); the last two through the common interface (mac.py, mac_path.py), same channel and receiver
+    mac: Literal["sotdma", "80211p", "cv2x"] = "sotdma"
+    ieee80211p: Mac80211pParams = field(default_factory=Mac80211pParams)  # vanet.ieee80211p
+    cv2x: Cv2xParams = field(default_factory=Cv2xParams)  # vanet.cv2x
 
     def __post_init__(self) -> None:
-        # the frame must hold the largest CAM: frame_layout raises ValueError otherwise
+        # the frame must hold the largest CAM: frame_layout raises ValueError otherwise (the 1-s frame also
+        # paces the load rows and OBU horizons of the other MACs)
         self.sotdma.frame_layout(self.cam.max_size_bytes)
+        if self.mac == "cv2x" and int(self.cv2x.subchannels_for(self.cam.max_size_bytes)) == 0:
+            raise ValueError(
+                f"vanet.cv2x: a {self.cam.max_size_bytes}-B CAM does not fit {self.cv2x.n_subchannels} "
+                f"subchannels of {self.cv2x.subchannel_rbs} RBs at MCS 7"
+            )
 
 
 TX_COLUMNS = {
@@ -153,7 +166,14 @@ class VanetLayer:
         self.frame_us, self.slot_us, self.n_slots = params.sotdma.frame_layout(params.cam.max_size_bytes)
         self.frame_ms = self.frame_us // 1000
         self.cam = CamGenerator(params.cam, 1)
-        self.mac = SotdmaMac(params.sotdma, self.n_slots, 1, rng)
+        self.mac_path = None
+        if params.mac == "sotdma":
+            self.mac = SotdmaMac(params.sotdma, self.n_slots, 1, rng)
+        else:  # 802.11p / C-V2X through the common MAC interface (mac_path.py)
+            from cosim.vanet.mac_path import MacPath
+
+            self.mac_path = MacPath(params, self.aether, rng, self.frame_us)
+            self.mac = self.mac_path
         self.obu = ObuTables(1)
         horizon = max(params.obu.table_frames * self.frame_us, round(params.obu.stale_after_s * 1e6))
         self.records = RecordStore(horizon + 2 * self.frame_us)
@@ -230,7 +250,10 @@ class VanetLayer:
             self.station_id[left] = 0
         if came.size:
             self.cam.reset(came)
-            self.mac.start(came, g_lo)
+            if self.mac_path is None:
+                self.mac.start(came, g_lo)
+            else:
+                self.mac_path.start(came, self._now_us, self._dt_us)
             self.pending[came] = False
             self.obu.reset(came)
             self.station_id[came] = np.arange(self._next_station_id, self._next_station_id + came.size)
@@ -269,6 +292,10 @@ class VanetLayer:
         timing: dict[str, float] = {}
 
         # 0. deliveries of the previous window become visible (a receiver replaced since is reset below)
+        if self.mac_path is not None:  # frames of an earlier window that ended by now: older, so first
+            late = self.mac_path.due(now_us)
+            if late is not None:
+                self.obu.deliver(*late)
         if self._inbox is not None:
             self.obu.deliver(*self._inbox)
             self._inbox = None
@@ -307,12 +334,15 @@ class VanetLayer:
                 n_drop = int(np.count_nonzero(self.pending[slots]))
                 self.pending_cam[slots] = f
                 self.pending[slots] = True
-                rates = report_rate(
-                    self.cam.t_gen_cam_ms[slots], self.frame_ms, self.params.sotdma.max_report_rate
-                )
-                self.mac.set_rates(slots, rates, g_lo)
+                if self.mac_path is None:
+                    rates = report_rate(
+                        self.cam.t_gen_cam_ms[slots], self.frame_ms, self.params.sotdma.max_report_rate
+                    )
+                    self.mac.set_rates(slots, rates, g_lo)
         t2 = clock()
         timing["cam"] = t2 - t1
+        if self.mac_path is not None:
+            return self._step_mac(world, step_index, valid, now_us, t_hi, n_gen, n_drop, timing, t2)
 
         # 3. SOTDMA
         self.mac.enter(g_lo)
@@ -378,6 +408,86 @@ class VanetLayer:
         timing["log"] = clock() - t5
         return result
 
+    def _step_mac(self, world, step_index, valid, now_us, t_hi, n_gen, n_drop, timing, t2) -> VanetStepResult:
+        """Steps 3-6 for an interface MAC (802.11p, C-V2X): see mac_path.py."""
+        clock = time.perf_counter
+        path = self.mac_path
+        cap = world.capacity
+        x, y = world.x_m[:cap], world.y_m[:cap]
+        active = valid.nonzero()[0]
+        xy = np.stack([x[active], y[active]], axis=1)
+        out, rec, seqs, tx_slot, inbox = path.step(self, active, xy, now_us, self._dt_us)
+        self._inbox = inbox
+        t3 = clock()
+        timing["mac"] = t3 - t2
+        self._busy_us[active] += out.busy_us
+        self._ego_slot = int(world.ego_slot) if world.ego_slot >= 0 and world.valid[world.ego_slot] else -1
+        self._valid_now = active
+        n = tx_slot.size
+        frame = out.tx_start_us // self.frame_us
+        slot = path.slot_column(out)
+        tx_cols = {
+            "t_s": out.tx_start_us / 1e6,
+            "sender_slot": tx_slot.astype(np.int32),
+            "sender_station_id": rec["station_id"].astype(np.uint32),
+            "frame": frame.astype(np.int64),
+            "slot": slot,
+            "size_bytes": rec["size_bytes"].astype(np.uint16),
+            "gen_t_s": rec["gen_ms"] / 1e3,
+            "has_lf": rec["has_lf"].astype(bool),
+            "n_path_points": rec["n_path_points"].astype(np.uint8),
+            "trigger": rec["trigger"].astype(np.uint8),
+            "timeout": np.full(n, -1, dtype=np.int8),
+            "offset": np.zeros(n, dtype=np.int32),
+        }
+        mode = self.params.rx_log
+        if mode == "none":
+            rx_cols = _empty(RX_COLUMNS)
+        else:
+            lt, lr = out.rx_tx, out.rx_rx
+            if mode == "ego":
+                keep = world.is_ego[active][lr]
+                lt, lr = lt[keep], lr[keep]
+                sel = keep
+            else:
+                sel = slice(None)
+            rs = active[lr]
+            dxy = xy[lr] - xy[out.tx_station[lt]]
+            rx_cols = {
+                "t_s": rec["rx_us"][lt] / 1e6,
+                "sender_slot": tx_slot[lt].astype(np.int32),
+                "sender_station_id": rec["station_id"][lt].astype(np.uint32),
+                "receiver_slot": rs.astype(np.int32),
+                "receiver_station_id": self.station_id[rs],
+                "frame": frame[lt].astype(np.int64),
+                "slot": slot[lt],
+                "distance_m": np.hypot(dxy[:, 0], dxy[:, 1]).astype(np.float32),
+                "outcome": out.rx_outcome[sel].astype(np.uint8),
+                "rx_power_dbm": out.rx_power_dbm[sel].astype(np.float32),
+                "gen_t_s": rec["gen_ms"][lt] / 1e3,
+            }
+        path.load_add(out, self._frame_acc)
+        n_res = path.n_resources
+        result = VanetStepResult(
+            step_index=step_index,
+            t_s=now_us / 1e6,
+            tx=tx_cols,
+            rx=rx_cols,
+            load=self._load_rows_from_acc(t_hi, n_res),
+            stats={
+                "t_s": np.array([now_us / 1e6]),
+                "n_stations": np.array([active.size], dtype=np.int32),
+                "cams_generated": np.array([n_gen], dtype=np.int32),
+                "cams_dropped": np.array([n_drop], dtype=np.int32),
+                "tx_count": np.array([n], dtype=np.int32),
+                "rx_count": np.array([np.count_nonzero(out.rx_outcome == 0)], dtype=np.int32),
+                "links_evaluated": np.array([out.rx_tx.size], dtype=np.int32),
+            },
+            timing_s=timing,
+        )
+        timing["log"] = clock() - t3
+        return result
+
     def _tx_columns(self, tx, tx_us, rec) -> dict[str, np.ndarray]:
         n = self.n_slots
         return {
@@ -439,6 +549,11 @@ class VanetLayer:
                 self._frame_acc[f] = [
                     x + y for x, y in zip(self._frame_acc.get(f, [0, 0, 0, 0]), add, strict=True)
                 ]
+        return self._load_rows_from_acc(t_hi, n)
+
+    def _load_rows_from_acc(self, t_hi: int, n: int) -> dict[str, np.ndarray]:
+        """/vanet/load rows of the frames completed by t_hi, from the per-frame accumulators (n: resources
+        per frame; 0: a MAC without slots, busy_ratio NaN)."""
         done_until = t_hi // self.frame_us  # frames < done_until are complete
         rows = []
         while self._next_load_frame is not None and self._next_load_frame < done_until:
@@ -466,7 +581,7 @@ class VanetLayer:
             "busy_slots": a[:, 0].astype(np.int32),
             "multi_tx_slots": a[:, 1].astype(np.int32),
             "tx_count": a[:, 2].astype(np.int32),
-            "busy_ratio": (a[:, 0] / n).astype(np.float32),
+            "busy_ratio": (a[:, 0] / n if n else np.full(fr.size, np.nan)).astype(np.float32),
             "airtime_ratio": (a[:, 3] / self.frame_us).astype(np.float32),
             "cbr_mean": mean,
             "cbr_p95": p95,

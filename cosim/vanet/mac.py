@@ -19,11 +19,17 @@ window (channel busy ratio = busy_us / dt_us).
 Within a window, each MAC decides in the order of its own microsecond / subframe times: what a station
 senses earlier in the window shapes what it does later in it (no lockstep artefacts).
 
-The reception rule both new MACs share (``sinr_threshold_db``) follows the PHY abstraction of Wu,
-Bartoletti, Martinez, Bazzi, "A Methodology for Abstracting the Physical Layer of Direct V2X Communications
-Technologies", Sensors 22(23):9330, 2022 (the one WiLabV2Xsim uses): the minimum SINR is the Shannon
-SINR of the frame's effective spectral efficiency divided by an implementation loss of 0.37 (their value
-for both 802.11p and LTE-V2X): ``sinr_min = 2^(eta / 0.37) - 1``.
+Reception is the shared receiver's (``cosim.vanet.receiver``, ``MacInput.receiver``: the run's
+``channel.receiver``): its noise floor, sensitivity, carrier-sense threshold, interference floor and SINR
+capture (``receiver.capture``: threshold or PER curve) decide every MAC's frames, so SOTDMA, 802.11p and
+C-V2X are compared on one channel and one receiver; each MAC only says which transmissions interfere with
+which (time overlap, same slot, same subchannels) and how much noise its band holds. IEEE 802.11p uses the
+receiver's capture threshold as it is (6 dB: the same 6-Mb/s OFDM PHY as SOTDMA). C-V2X's MCS differs: its
+threshold follows the PHY abstraction of Wu, Bartoletti, Martinez, Bazzi, "A Methodology for Abstracting
+the Physical Layer of Direct V2X Communications Technologies", Sensors 22(23):9330, 2022 (the one
+WiLabV2Xsim uses): the minimum SINR is the Shannon SINR of the frame's effective spectral efficiency
+divided by an implementation loss of 0.37 (their value for both 802.11p and LTE-V2X):
+``sinr_min = 2^(eta / 0.37) - 1``.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from typing import Protocol
 import numpy as np
 
 from cosim.vanet.channel import BELOW_SENSITIVITY, COLLIDED, DAMAGED, OK, OUTCOME_NAMES, SHADOWED
+from cosim.vanet.receiver import ReceiverParams
 
 __all__ = [
     "BELOW_SENSITIVITY",
@@ -53,6 +60,7 @@ __all__ = [
     "SHADOWED",
     "aether_link_budget",
     "distance_link_budget",
+    "receiver_of",
     "shannon_sinr_threshold_db",
 ]
 
@@ -75,6 +83,9 @@ class LinkPowers:
 
     power_dbm: np.ndarray  # (T, M) float32 received power after shadowing [dBm]; -inf: none
     in_range: np.ndarray  # (T, M) bool within the communication range by path loss alone (reported links)
+    # (T, M) bool at or above the sensitivity before building shadowing (None: in_range stands for it):
+    # tells a ``below_sensitivity`` loss from a ``shadowed`` one
+    above: np.ndarray | None = None
 
 
 LinkBudget = Callable[[np.ndarray, np.ndarray], LinkPowers]
@@ -92,8 +103,18 @@ class MacInput:
     size_bytes: np.ndarray  # (N,) int CAM size [B] (facilities layer; lower-layer headers are the MAC's)
     gen_us: np.ndarray  # (N,) int64 CAM generation time [us]
     link: LinkBudget
-    sensitivity_dbm: float = -89.0  # shared receiver sensitivity [dBm] (channel.sensitivity_dbm)
-    noise_dbm: float = -110.0  # noise floor over the 10-MHz channel [dBm] (channel.noise_dbm)
+    sensitivity_dbm: float = -89.0  # receiver sensitivity [dBm] when ``receiver`` is None (unit tests)
+    noise_dbm: float = -110.0  # noise floor over the 10-MHz channel [dBm] when ``receiver`` is None
+    # the shared receiver (channel.receiver: noise floor, sensitivity, CS, capture); None: a default
+    # ReceiverParams with the two values above
+    receiver: ReceiverParams | None = None
+
+
+def receiver_of(inp: MacInput) -> ReceiverParams:
+    """The receiver that decides a window's frames (``inp.receiver``, else one from its two plain values)."""
+    if inp.receiver is not None:
+        return inp.receiver
+    return ReceiverParams(noise_dbm=inp.noise_dbm, sensitivity_dbm=inp.sensitivity_dbm)
 
 
 @dataclass
@@ -118,6 +139,8 @@ class MacOutput:
     taken: np.ndarray | None = None
     # (T,) bool the transmission carries a CAM taken over in an earlier window (not the pending one). None: none.
     tx_held: np.ndarray | None = None
+    # (T,) int adjacent resources each transmission occupies (C-V2X: subchannels from tx_resource on). None: 1
+    tx_width: np.ndarray | None = None
 
     def decoded(self) -> tuple[np.ndarray, np.ndarray]:
         """(transmission index, receiver index) of every decoded frame."""
@@ -187,40 +210,63 @@ def distance_link_budget(
     return link
 
 
-def aether_link_budget(aether, floor_dbm: float = -110.0) -> LinkBudget:
-    """The link budget of the shared ``channel.Aether``: its path loss and building shadowing, exactly as its
-    own links use them. Pairs whose power before shadowing is below ``floor_dbm`` are -inf: signals under
-    -110 dBm are ignored altogether, as Veins' ``minPowerLevel = -110dBm`` (its example omnetpp.ini) does;
-    that spares the shadowing lookups of distant pairs."""
+def aether_link_budget(aether, floor_dbm: float | None = None) -> LinkBudget:
+    """The link budget of the shared ``channel.Aether``, computed as its own ``_block`` does: path loss, the
+    log-normal shadowing field (S = (X(tx) + X(rx)) / sqrt(2)), building shadowing (``los``: blocked ->
+    -inf, or the model's NLOS formula and NLOS sigma for ``winner_b1`` / ``3gpp_urban``; ``veins``: dB per
+    wall and metre). Pairs whose power before building shadowing is below ``floor_dbm`` (None: the aether's
+    floor, the receiver's interference floor noise - 20 dB) are -inf: they neither decode nor interfere.
+    ``in_range`` = within the aether's communication range (its reported links); ``above`` = at or above
+    the sensitivity before building shadowing (else a loss is ``below_sensitivity``, not ``shadowed``)."""
+    from cosim.vanet.pathloss import nlos_shadowing_sigma_db
+
     p = aether.p
     tx_dbm = np.float32(p.tx_power_dbm)
     comm2 = np.float32(aether.comm_range_m**2)
+    floor = np.float32(aether.floor_dbm if floor_dbm is None else floor_dbm)
+    field = aether.field
+    nlos = bool(getattr(aether, "_nlos", False))
+    nlos_extra_sigma = nlos_shadowing_sigma_db(p.path_loss) / 3.0 - 1.0
+    shadow = aether.shadow
+    has_buildings = type(shadow).__name__ != "NoShadowing"
+    sens = np.float32(p.sensitivity_dbm)
 
     def link(tx_xy: np.ndarray, rx_xy: np.ndarray) -> LinkPowers:
         tx_xy = np.asarray(tx_xy, dtype=np.float64)
         rx_xy = np.asarray(rx_xy, dtype=np.float64)
         d2 = _pairwise_d2(tx_xy, rx_xy).astype(np.float32)
         p0 = tx_dbm - aether.path_loss.loss_db_from_d2(d2)
+        s_db = None
+        if field is not None:
+            s_db = field.link_db(field.at(tx_xy)[:, None], field.at(rx_xy)[None, :]).astype(np.float32)
+            p0 = p0 + s_db
         self_pair = d2 < np.float32(1e-6)
-        cand = (p0 >= np.float32(floor_dbm)) & ~self_pair
+        cand = (p0 >= floor) & ~self_pair
         power = np.where(cand, p0, np.float32(-np.inf)).astype(np.float32)
-        shadow = aether.shadow
-        if cand.any() and type(shadow).__name__ != "NoShadowing":
+        if has_buildings and cand.any():
             rx_x = rx_xy[:, 0].astype(np.float32)
             rx_y = rx_xy[:, 1].astype(np.float32)
-            if hasattr(shadow, "blocked_pairs") and getattr(shadow, "model", None) == "los":
+            if not nlos and hasattr(shadow, "blocked_pairs") and getattr(shadow, "model", None) == "los":
                 blocked = shadow.blocked_pairs(tx_xy, cand, rx_x, rx_y)
                 power[blocked] = -np.inf
             else:
                 flat = np.flatnonzero(cand)
                 ti = flat // d2.shape[1]
                 ri = flat - ti * d2.shape[1]
-                loss = shadow.loss_db(tx_xy, ti, rx_x[ri], rx_y[ri])
+                loss = np.asarray(shadow.loss_db(tx_xy, ti, rx_x[ri], rx_y[ri]), dtype=np.float64)
+                if nlos:  # blocked line of sight: the model's NLOS formula (and NLOS sigma) instead
+                    nl = np.isinf(loss)
+                    if nl.any():
+                        d = np.sqrt(d2.reshape(-1)[flat[nl]].astype(np.float64))
+                        extra = aether.path_loss.nlos_db(d) - aether.path_loss.loss_db(d)
+                        if s_db is not None:
+                            extra -= s_db.reshape(-1)[flat[nl]] * nlos_extra_sigma
+                        loss[nl] = extra
                 power.reshape(-1)[flat] = (p0.reshape(-1)[flat] - loss).astype(np.float32)
         in_range = (d2 <= comm2) & ~self_pair
         if p.path_loss == "two_ray":  # not monotone: the range test is the power test
-            in_range = (p0 >= np.float32(p.sensitivity_dbm)) & ~self_pair
-        return LinkPowers(power, in_range)
+            in_range = (p0 >= sens) & ~self_pair
+        return LinkPowers(power, in_range, (p0 >= sens) & ~self_pair)
 
     return link
 
@@ -231,6 +277,13 @@ def aether_link_budget(aether, floor_dbm: float = -110.0) -> LinkBudget:
 def dbm_to_mw(x: np.ndarray) -> np.ndarray:
     with np.errstate(over="ignore"):
         return np.power(10.0, np.asarray(x, dtype=np.float64) / 10.0)
+
+
+def loss_labels(lp: LinkPowers, ti: np.ndarray, ri: np.ndarray) -> np.ndarray:
+    """Outcome of links (row ti of the link budget, receiver ri) whose power is below the sensitivity: SHADOWED when the path loss (and
+    log-normal shadowing) alone would have reached it, BELOW_SENSITIVITY otherwise."""
+    ref = lp.above if lp.above is not None else lp.in_range
+    return np.where(ref[ti, ri], SHADOWED, BELOW_SENSITIVITY).astype(np.uint8)
 
 
 def report_links(

@@ -12,8 +12,8 @@ Sources of every constant (IEEE Std 802.11-2016 unless said otherwise):
 * 6 Mbit/s = QPSK 1/2 at 10 MHz: N_DBPS = 48 bits per 8-us symbol (Table 17-4, rates halved at 10 MHz);
   PSDU bits = 16 SERVICE + 8 x length + 6 tail (17.3.5.4), padded to whole symbols.
 * MAC overhead per CAM 80 B (as sotdma.py: MAC header 24, LLC/SNAP 8, GeoNetworking 40, BTP-B 4, FCS 4).
-* Carrier sense (17.3.10.6): a frame whose preamble arrives at >= -85 dBm (the minimum sensitivity of the
-  lowest rate at 10 MHz) makes CCA busy for its duration; so does a weaker frame the station can decode
+* Carrier sense (17.3.10.6): a frame whose preamble arrives at >= the shared receiver's CS threshold
+  (-85 dBm: the minimum sensitivity of the lowest rate at 10 MHz) makes CCA busy for its duration; so does a weaker frame the station can decode
   (>= the shared sensitivity: its PHY syncs and is in RX, as ns-3's and Veins' PHYs report busy); energy
   detection at -65 dBm (20 dB above) is then implied for single frames and not modelled for sums of weaker
   ones. The busy time reported for the CBR counts frames at >= -85 dBm only (ETSI TS 102 687 §5.2).
@@ -29,8 +29,10 @@ Sources of every constant (IEEE Std 802.11-2016 unless said otherwise):
   (no frame capture, as ns-3's default and Veins); a frame overlapping the receiver's own transmission is a
   half-duplex loss; the locked frame is decoded when S / (N + sum of every overlapping frame) >= the SINR
   threshold (the sum over the whole frame: Veins' minimum-SINR reading, conservative when interferers do
-  not overlap each other). Threshold: Wu et al. 2022 (see mac.py) for the reference frame of
-  ``ref_payload_bytes`` (190 B, the 3GPP/ETSI reference CAM) at 6 Mbit/s: 0.8 dB.
+  not overlap each other). Noise floor, sensitivity, CS threshold and the SINR test are the shared
+  receiver's (``receiver.capture``; ``MacInput.receiver``): its 6-dB capture threshold is that of this
+  very PHY (QPSK 1/2, 6 Mb/s at 10 MHz), which SOTDMA uses too. ``sinr_threshold_db`` overrides it; Wu et
+  al. 2022 (mac.py) would give 0.8 dB for the 190-B reference CAM (``wu_sinr_db``).
 
 Event order inside a window: CAMs reach the MAC at t0 + a per-station phase drawn once per station
 (uniform over the base step: each OBU's own CAM clock; the layer checks CAM generation at step
@@ -48,17 +50,17 @@ import numpy as np
 
 from cosim.vanet.dcc import DccParams, ReactiveDcc
 from cosim.vanet.mac import (
-    BELOW_SENSITIVITY,
     DAMAGED,
     HALF_DUPLEX,
     OK,
-    SHADOWED,
     MacInput,
     MacOutput,
-    dbm_to_mw,
     empty_output,
+    loss_labels,
+    receiver_of,
     shannon_sinr_threshold_db,
 )
+from cosim.vanet.receiver import ReceiverParams, capture
 
 # IEEE 802.11-2016 Table 9-137 (dot11OCBActivated true): AIFSN, CWmin, CWmax
 EDCA_OCB = {
@@ -82,9 +84,9 @@ class Mac80211pParams:
     symbol_us: int = 8  # OFDM symbol, 10 MHz (Table 17-21)
     bit_rate_mbps: float = 6.0  # QPSK 1/2 at 10 MHz
     mac_overhead_bytes: int = 80  # MAC 24 + LLC/SNAP 8 + GN 40 + BTP 4 + FCS 4 [B]
-    cs_threshold_dbm: float = -85.0  # CCA preamble detection, 10 MHz (17.3.10.6)
-    sinr_threshold_db: float | None = None  # None: Wu et al. 2022 for the reference frame (0.8 dB)
-    ref_payload_bytes: int = 190  # reference CAM for the automatic threshold [B]
+    cs_threshold_dbm: float | None = None  # CCA preamble detection [dBm]; None: the shared receiver's (-85)
+    sinr_threshold_db: float | None = None  # minimum SINR [dB]; None: the shared receiver's capture rule
+    ref_payload_bytes: int = 190  # reference CAM of ``wu_sinr_db`` [B]
     post_backoff: bool = True  # 10.22.2.2: a backoff after every transmission
     dcc: DccParams = DccParams()
 
@@ -121,10 +123,21 @@ class Mac80211pParams:
         nsym = -(-nbits // self.ndbps)
         return self.preamble_us + self.signal_us + nsym * self.symbol_us
 
-    @property
-    def sinr_min_db(self) -> float:
+    def receiver(self, shared: ReceiverParams) -> ReceiverParams:
+        """The shared receiver with this MAC's overrides (CS threshold, SINR threshold) applied."""
+        import dataclasses
+
+        kw = {}
+        if self.cs_threshold_dbm is not None:
+            kw["cs_threshold_dbm"] = float(self.cs_threshold_dbm)
         if self.sinr_threshold_db is not None:
-            return float(self.sinr_threshold_db)
+            kw["capture_threshold_db"] = float(self.sinr_threshold_db)
+            kw["per_curve"] = None
+        return dataclasses.replace(shared, **kw) if kw else shared
+
+    @property
+    def wu_sinr_db(self) -> float:
+        """Minimum SINR of the reference CAM by Wu et al. 2022 (mac.py) [dB]; not the default (see above)."""
         bits = 8 * (self.ref_payload_bytes + self.mac_overhead_bytes)
         t = self.preamble_us + self.signal_us + self.aifs_us + self.symbol_us * -(-bits // self.ndbps)
         return shannon_sinr_threshold_db(bits, t * 1e-6, 10e6)
@@ -140,7 +153,6 @@ class Mac80211p:
         self.rng = rng
         self.capacity = 0
         self.dcc = ReactiveDcc(params.dcc)
-        self._sinr_min = 10.0 ** (params.sinr_min_db / 10.0)
         self._tail: list[
             tuple[int, int, int]
         ] = []  # (station, start_us, dur_us) running into the next window
@@ -190,6 +202,7 @@ class Mac80211p:
         st = np.asarray(inp.stations, dtype=np.int64)
         if n and not self.alive[st].all():  # stations the caller did not start: start them now
             self.start(st[~self.alive[st]], inp.t0_us, inp.dt_us)
+        self._rx = self.p.receiver(receiver_of(inp))
         t0, t1 = int(inp.t0_us), int(inp.t0_us + inp.dt_us)
         pending = np.asarray(inp.pending, dtype=bool)
         self.queued[st] &= pending
@@ -225,7 +238,7 @@ class Mac80211p:
         sent = np.zeros(n, dtype=bool)
         sent[tx_station] = True
         self.dcc.sent(st[tx_station], tx_start)
-        out = self._receive(inp, tx_station, tx_start, tx_dur, power, lp.in_range, tx_row_of, tail, t0, t1)
+        out = self._receive(inp, tx_station, tx_start, tx_dur, power, lp, tx_row_of, tail, t0, t1)
         out.sent = sent
         self._tail = [
             (int(st[s]), int(a), int(d))
@@ -264,8 +277,9 @@ class Mac80211p:
         draw_post = self.rng.integers(0, cw + 1, size=n).tolist()
         dur = p.air_time_us(np.asarray(inp.size_bytes, dtype=np.int64)).astype(np.int64).tolist()
         # a station senses a frame it can decode (its PHY syncs and reports busy, as in ns-3 and Veins) or
-        # one at or above the CCA threshold: the lower of the sensitivity and cs_threshold_dbm
-        hear_all = power >= np.float32(min(p.cs_threshold_dbm, inp.sensitivity_dbm))  # (rows, N)
+        # one at or above the CCA threshold: the lower of the receiver's sensitivity and CS threshold
+        rx = self._rx
+        hear_all = power >= np.float32(min(rx.cs_threshold_dbm, rx.sensitivity_dbm))  # (rows, N)
         heap = []
         for k in frames.tolist():
             a = int(arrival[k])
@@ -359,15 +373,13 @@ class Mac80211p:
         if not tail:
             return
         lp = inp.link(inp.xy[tail_idx], inp.xy)
-        hear = lp.power_dbm >= np.float32(self.p.cs_threshold_dbm)
+        hear = lp.power_dbm >= np.float32(self._rx.cs_threshold_dbm)
         ends = np.array([min(a + d, t1) for _, a, d in tail], dtype=np.float64)
         out.busy_us = np.where(hear, (ends - t0)[:, None], 0.0).max(axis=0)
 
-    def _receive(
-        self, inp, tx_station, tx_start, tx_dur, power, in_range, tx_row_of, tail, t0, t1
-    ) -> MacOutput:
+    def _receive(self, inp, tx_station, tx_start, tx_dur, power, lp, tx_row_of, tail, t0, t1) -> MacOutput:
         """Outcomes of the window's frames at every station (see the module docstring)."""
-        p = self.p
+        rx = self._rx
         n = inp.stations.size
         nt = tx_station.size
         n_tail = len(tail)
@@ -398,7 +410,7 @@ class Mac80211p:
         interf -= mw[:nt]
         np.maximum(interf, 0.0, out=interf)
         # preamble missed: another decodable frame started strictly earlier and is still on the air
-        dec = pw >= np.float32(inp.sensitivity_dbm)
+        dec = pw >= np.float32(rx.sensitivity_dbm)
         k = np.zeros((f + 1, n), dtype=np.int32)
         np.cumsum(dec[by_start], axis=0, dtype=np.int32, out=k[1:])
         locked = k[a2]
@@ -415,21 +427,23 @@ class Mac80211p:
             o = by_start[np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(lo, cnt)]
             ov = (end[o] > start[j]) & (start[o] < end[j]) & (o != j)
             hd[j[ov], sender[o[ov]]] = True
-        noise = float(dbm_to_mw(inp.noise_dbm))
         p_tx = pw[:nt]
-        sinr = mw[:nt] / (noise + interf)
-        above = p_tx >= np.float32(inp.sensitivity_dbm)
-        rng = in_range[tx_row_of[tx_station]] if nt else np.zeros((0, n), dtype=bool)
-        reported = (rng | above) & (np.arange(n)[None, :] != tx_station[:, None])
+        above = p_tx >= np.float32(rx.sensitivity_dbm)
+        tx_rows = tx_row_of[tx_station]
+        in_rng = lp.in_range[tx_rows] if nt else np.zeros((0, n), dtype=bool)
+        reported = (in_rng | above) & (np.arange(n)[None, :] != tx_station[:, None])
         ti, ri = np.nonzero(reported)
         outcome = np.full(ti.size, OK, dtype=np.uint8)
         ab = above[ti, ri]
-        damaged = locked[ti, ri] | (sinr[ti, ri] < self._sinr_min)
+        # the shared receiver's SINR test on the reported links: S / (N + every overlapping frame)
+        ok = capture(mw[:nt][ti, ri].astype(np.float64), interf[ti, ri], rx, self.rng)[1]
+        damaged = locked[ti, ri] | ~ok
         outcome[damaged] = DAMAGED
         outcome[hd[ti, ri]] = HALF_DUPLEX
-        outcome[~ab] = np.where(rng[ti, ri][~ab], SHADOWED, BELOW_SENSITIVITY)
+        bad = np.flatnonzero(~ab)
+        outcome[bad] = loss_labels(lp, tx_rows[ti[bad]], ri[bad])
         # sensed busy time in the window: union of the frames heard at >= CS (own frames excluded)
-        busy = self._busy(start, end, pw >= np.float32(p.cs_threshold_dbm), sender, t0, t1, n)
+        busy = self._busy(start, end, pw >= np.float32(rx.cs_threshold_dbm), sender, t0, t1, n)
         return MacOutput(
             tx_station=tx_station.astype(np.int64),
             tx_start_us=tx_start.astype(np.int64),

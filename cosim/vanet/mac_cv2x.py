@@ -23,10 +23,13 @@ Sources of every rule and constant:
   as WiLabV2Xsim's), else the last SCI announces no reservation and the next CAM triggers a selection. A
   CAM that does not fit the reserved subchannels, or a reservation unused for 1 s, also triggers one
   (36.321 §5.14.1.1). A CAM waits for its reserved subframe (up to one RRI).
-* Reception: half duplex (a station transmitting in a subframe receives nothing in it); PSSCH decoded when
-  the power is at or above the shared sensitivity and S / (N + I) >= the SINR threshold, with N the noise of
-  the frame's RBs and I the power of every other transmission of the subframe in the same subchannels;
-  threshold from Wu et al. 2022 (mac.py) for a 190-B CAM at MCS 7: 2.8 dB. The SCI (PSCCH, 2 RBs) is decoded
+* Reception by the shared receiver (``receiver.capture``, ``MacInput.receiver``): half duplex (a station
+  transmitting in a subframe receives nothing in it); PSSCH decoded when the power is at or above the
+  receiver's sensitivity and S / (N + I) >= the SINR threshold, with N the receiver's noise floor scaled to
+  the frame's RBs and I the power of every other transmission of the subframe in the same subchannels
+  (interferers below the receiver's interference floor are not in the link budget). The threshold is that
+  of MCS 7, not the receiver's (which is the 6-Mb/s OFDM PHY's): Wu et al. 2022 (mac.py) for a 190-B CAM
+  at MCS 7: 2.8 dB (``sinr_threshold_db`` overrides it). The SCI (PSCCH, 2 RBs) is decoded
   when its SINR per RB >= ``sci_sinr_threshold_db`` (0 dB, WiLabV2Xsim's minSCIsinr).
 * CBR (TS 36.214 §5.1.30): the share of subchannel-subframes whose S-RSSI exceeds ``cbr_rssi_threshold_dbm``
   (-94 dBm; threshS-RSSI-CBR, TS 36.331: -112..-60 dBm): ``busy_us`` counts 1000 / C us per busy one.
@@ -43,17 +46,18 @@ import numpy as np
 
 from cosim.vanet.dcc import DccParams, ReactiveDcc
 from cosim.vanet.mac import (
-    BELOW_SENSITIVITY,
     DAMAGED,
     HALF_DUPLEX,
     OK,
-    SHADOWED,
     MacInput,
     MacOutput,
     dbm_to_mw,
     empty_output,
+    loss_labels,
+    receiver_of,
     shannon_sinr_threshold_db,
 )
+from cosim.vanet.receiver import capture
 
 # TS 36.213 Table 7.1.7.2.1-1, I_TBS = 7, N_PRB = 1..50 [bits]
 TBS_ITBS7 = (
@@ -146,7 +150,6 @@ class MacCv2x:
         self.rng = rng
         self.capacity = 0
         self.dcc = ReactiveDcc(params.dcc)
-        self._sinr_min = 10.0 ** (params.sinr_min_db / 10.0)
         self._sci_min = 10.0 ** (params.sci_sinr_threshold_db / 10.0)
         self._archive: list[dict] = []  # one entry per past window: what each station sensed in it
         self.stats = {"selections": 0, "keeps": 0, "threshold_raises": 0}
@@ -188,6 +191,12 @@ class MacCv2x:
         n = st.size
         if n and not self.alive[st].all():
             self.start(st[~self.alive[st]], inp.t0_us, inp.dt_us)
+        import dataclasses
+
+        # the shared receiver with MCS 7's threshold (a PER curve given for the OFDM PHY does not apply)
+        self._rx = dataclasses.replace(
+            receiver_of(inp), capture_threshold_db=float(p.sinr_min_db), per_curve=None
+        )
         if inp.t0_us % 1000 or inp.dt_us % 1000:
             raise ValueError("cv2x: the base step must be whole milliseconds")
         sf0, sf1 = inp.t0_us // 1000, (inp.t0_us + inp.dt_us) // 1000
@@ -207,6 +216,7 @@ class MacCv2x:
         lp = inp.link(inp.xy[frames], inp.xy)
         self._power = lp.power_dbm
         self._in_range_all = lp.in_range
+        self._lp = lp
         self._row_of = np.full(n, -1, dtype=np.int64)
         self._row_of[frames] = np.arange(frames.size)
         need_L = p.subchannels_for(np.asarray(inp.size_bytes)[frames])
@@ -269,7 +279,7 @@ class MacCv2x:
         out.taken = new & (self.held_sf[st] > NEVER) & ~out.sent
         self.dcc.sent(st[out.tx_station], out.tx_start_us)
         self.dcc.update(st, out.busy_us / max(inp.dt_us, 1))
-        del self._power, self._inp, self._in_range_all
+        del self._power, self._inp, self._in_range_all, self._lp
         return out
 
     def _use(self, txs, k, gk, sf, x, L, held=False) -> None:
@@ -390,7 +400,7 @@ class MacCv2x:
         sel = np.flatnonzero((sf >= a) & (sf < until_sf))
         if sel.size == 0:
             return
-        p, inp = self.p, self._inp
+        p = self.p
         C, rbs = p.n_subchannels, p.subchannel_rbs
         k = np.asarray(tx["k"], dtype=np.int64)[sel]
         sf = sf[sel]
@@ -415,8 +425,9 @@ class MacCv2x:
         slot_of = np.searchsorted(ukey, key)  # row of S of each (tx, subchannel)
         band = np.add.reduceat(S[slot_of], np.cumsum(L) - L, axis=0)  # summed over each frame's subchannels
         interf = np.maximum(band - mw, 0.0)
-        noise_rb = float(dbm_to_mw(inp.noise_dbm)) / p.channel_rbs
-        sinr = mw / (noise_rb * L[:, None] * rbs + interf)
+        rx = self._rx
+        noise_full = float(dbm_to_mw(rx.noise_floor_dbm))
+        noise_rb = noise_full / p.channel_rbs
         # half duplex: the receiver transmits in the same subframe
         hd = np.zeros((k.size, n), dtype=bool)
         fs = np.flatnonzero(np.r_[True, sf[1:] != sf[:-1]])
@@ -425,15 +436,19 @@ class MacCv2x:
             if c > 1:
                 hd[np.ix_(np.arange(g0, g0 + c), k[g0 : g0 + c])] = True
         hd[np.arange(k.size), k] = False
-        above = pw >= np.float32(inp.sensitivity_dbm)
+        above = pw >= np.float32(rx.sensitivity_dbm)
         in_range = self._link_in_range(k)
         reported = (in_range | above) & (np.arange(n)[None, :] != k[:, None])
         ti, ri = np.nonzero(reported)
         outcome = np.full(ti.size, OK, dtype=np.uint8)
-        outcome[sinr[ti, ri] < self._sinr_min] = DAMAGED
+        # S / (N_band + I) by the receiver's rule: scaled by N_full / N_band, its noise is the full floor
+        scale = (p.channel_rbs / (L * rbs))[ti]
+        ok = capture(mw[ti, ri] * scale, interf[ti, ri] * scale, rx)[1]
+        outcome[~ok] = DAMAGED
         outcome[hd[ti, ri]] = HALF_DUPLEX
         ab = above[ti, ri]
-        outcome[~ab] = np.where(in_range[ti, ri][~ab], SHADOWED, BELOW_SENSITIVITY)
+        bad = np.flatnonzero(~ab)
+        outcome[bad] = loss_labels(self._lp, self._row_of[k][ti[bad]], ri[bad])
         self._outs.append((k, sf, x, L, ti, ri, pw[ti, ri].astype(np.float32), outcome, hl))
         # SCI (PSCCH, first subchannel) decoding and PSSCH-RSRP per resource element
         first_sub = S[np.searchsorted(ukey, sf * C + x)]  # (K, N) power per subchannel in the PSCCH's
@@ -534,4 +549,5 @@ class MacCv2x:
             stats=dict(self.stats),
         )
         out.tx_held = hl[order]
+        out.tx_width = np.concatenate([o[3] for o in self._outs])[order]
         return out

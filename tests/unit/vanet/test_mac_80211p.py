@@ -22,7 +22,29 @@ def test_phy_constants():
     # AC_BE with OCB: AIFS = 32 + 6 x 13 = 110 us; a 190-B CAM + 80 B: 2182 bits -> 46 symbols -> 408 us
     assert P.aifs_us == 110 and P.cw_min == 15
     assert int(P.air_time_us(190)) == 32 + 8 + 46 * 8
-    assert 0.5 < P.sinr_min_db < 1.2
+    assert 0.5 < P.wu_sinr_db < 1.2  # Wu et al. 2022, for reference; the default is the shared receiver's
+    assert P.sinr_threshold_db is None and P.cs_threshold_dbm is None
+
+
+def test_frames_are_decided_by_the_shared_receiver():
+    # one frame, 100 m: -74.8 dBm; noise floor -78.8 dBm -> SNR 4 dB. The receiver's capture threshold
+    # decides: 6 dB (its default, QPSK 1/2) loses it, 3 dB decodes it, a PER curve of 1 loses it
+    from cosim.vanet.receiver import ReceiverParams
+
+    cases = (
+        (ReceiverParams(noise_dbm=-78.8), DAMAGED),
+        (ReceiverParams(noise_dbm=-78.8, capture_threshold_db=3.0), OK),
+        (
+            ReceiverParams(noise_dbm=-78.8, capture_threshold_db=3.0, per_curve=((0.0, 1.0), (30.0, 1.0))),
+            DAMAGED,
+        ),
+    )
+    for rx, want in cases:
+        mac = make(2)
+        mac.phase_us[:] = [0, 99_000]
+        inp = step_input(0, [[0, 0], [100, 0]], pending=[True, False])
+        inp.receiver = rx
+        assert outcome_at(mac.step(inp), 0, 1) == want
 
 
 def test_backoff_freezes_while_the_medium_is_busy():

@@ -102,3 +102,21 @@ def test_deterministic_per_seed():
     for oa, ob in zip(a, b, strict=True):
         for f in ("tx_station", "tx_resource", "rx_tx", "rx_rx", "rx_outcome", "busy_us"):
             assert np.array_equal(getattr(oa, f), getattr(ob, f))
+
+
+def test_frames_are_decided_by_the_shared_receiver_at_the_mcs_threshold():
+    # one 190-B frame on 2 subchannels (20 of 50 RBs), 100 m: -74.8 dBm. The receiver's noise floor over
+    # 10 MHz -71.8 dBm is -75.8 dBm over the frame's RBs: SNR 1 dB < MCS 7's 2.8 dB -> damaged; a 0-dB
+    # threshold decodes it; a 10-dB lower noise floor too
+    from cosim.vanet.mac import DAMAGED
+    from cosim.vanet.receiver import ReceiverParams
+
+    for noise, kw, want in ((-71.8, {}, DAMAGED), (-71.8, {"sinr_threshold_db": 0.0}, OK), (-81.8, {}, OK)):
+        mac = make(2, **kw)
+        got = None
+        for k in range(3):
+            inp = step_input(k, [[0, 0], [100, 0]], pending=[k == 0, False])
+            inp.receiver = ReceiverParams(noise_dbm=noise)
+            out = mac.step(inp)
+            got = outcome_at(out, 0, 1) if got is None else got
+        assert got == want, (noise, kw)
