@@ -103,6 +103,14 @@ class RunConfig:
         if round(self.duration_s / self.timing.sumo_step_s) < 1:
             raise ValueError(f"duration_s ({self.duration_s} s) is shorter than one step: give at least "
                              f"timing.sumo_step_s ({self.timing.sumo_step_s} s)")  # fmt: skip
+        if self.vanet is not None and self.adas.v2v.max_data_age_s > self.vanet.obu.map_memory_s:
+            # system B's "no data" must come from its own timeout while the OBU map still holds the leader
+            # (cosim.vanet.obu: the map memory and B's timeout)
+            raise ValueError(
+                f"adas.v2v.max_data_age_s ({self.adas.v2v.max_data_age_s} s) must not exceed "
+                f"vanet.obu.map_memory_s ({self.vanet.obu.map_memory_s} s): the OBU map forgets a leader "
+                "after map_memory_s, before system B would call its data stale"
+            )
         if self.scenario.demand.area == "around_ego" and not self.ego.enabled:
             raise ValueError(
                 "scenario.demand.area: around_ego generates traffic around the ego: needs ego.enabled"

@@ -14,7 +14,9 @@ but never advised or warned about: queue creeping at 1 m/s with 2 m to go is not
 
 Staleness: when the newest CAM is older than ``max_data_age_s`` (default 3 s = 3 x T_GenCamMax of ETSI
 EN 302 637-2, i.e. two CAMs in a row lost even at the slowest generation rate) the display shows "no data"
-(``time_gap_s = None``, level 'none'), never the stale gap; the hysteresis state is reset.
+(``time_gap_s = None``, level 'none'), never the stale gap; the hysteresis state is reset. The timeout must
+not exceed the OBU map's memory (``vanet.obu.map_memory_s``, 5 s: the paper's "five frames"; checked by the
+run config), so "no data" comes from this timeout while the map still holds the leader.
 
 Thresholds, and which reading of the paper the default follows. The paper says a warning "was issued if
 this time-gap was less than three seconds ... until the driver adjusted the gap to the recommended two

@@ -175,7 +175,7 @@ class VanetLayer:
             self.mac_path = MacPath(params, self.aether, rng, self.frame_us)
             self.mac = self.mac_path
         self.obu = ObuTables(1)
-        horizon = max(params.obu.table_frames * self.frame_us, round(params.obu.stale_after_s * 1e6))
+        horizon = round(max(params.obu.map_memory_s, params.obu.stale_after_s) * 1e6)
         self.records = RecordStore(horizon + 2 * self.frame_us)
         self.capacity = 0
         self._busy_us = np.zeros(0)  # per World slot: sensed-busy time in the current frame [us]

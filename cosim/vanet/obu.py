@@ -2,9 +2,18 @@
 
 Which reading each default follows
 ----------------------------------
-* Neighbour map (paper §VI.C): every station heard within the last ``table_frames`` (5) frames, its position
-  extrapolated to "now" from the CAM (constant acceleration, stopping at standstill, by default; the paper
-  computes "the position of the vehicle ... into the current transmission slot").
+* Neighbour map (paper §VI.C): every station whose newest CAM was delivered within the last ``map_memory_s``
+  (5 s), its position extrapolated to "now" from the CAM (constant acceleration, stopping at standstill, by
+  default; the paper computes "the position of the vehicle ... into the current transmission slot"). The
+  paper keeps the stations heard in the last "five frames"; its frames are the SOTDMA frames of 1 s
+  (``sotdma.frame_s``), so five frames = 5 s. The memory is a time, not a frame count, so that it stays the
+  same when the frame length changes and means the same for MACs without frames (802.11p, C-V2X). It is
+  measured from the delivery of the newest CAM (a station is "heard" when one of its CAMs is decoded).
+* Consistency with system B (``cosim.adas.v2v_timegap``): B shows "no data" once the leader's newest CAM is
+  older than ``adas.v2v.max_data_age_s`` (3 s since generation). The run config requires that timeout, and
+  ``stale_after_s`` below, to be at most ``map_memory_s``: B's "no data" comes from its own timeout while the
+  map still holds the leader (from 3 s to 5 s B says "stale" about a vehicle the map still places), never
+  from the map having forgotten a leader whose data B would still call fresh.
 * Leader criteria a-g (paper §VI.C), each switchable in ``LeaderCriteria``:
   a) close: distance <= ``close_range_m`` (100 m; the paper says "close proximity");
   b) same direction: heading difference <= ``same_direction_max_deg`` (30 deg);
@@ -60,16 +69,29 @@ class LeaderCriteria:
 
 @dataclass(frozen=True)
 class ObuParams:
-    table_frames: int = 5  # neighbour map: stations heard within this many frames
+    # neighbour map memory: stations whose newest CAM was delivered within this time [s]; the paper's "five
+    # frames" (§VI.C) of 1 s (see the module docstring)
+    map_memory_s: float = 5.0
     extrapolation: Literal["none", "constant_velocity", "constant_acceleration"] = "constant_acceleration"
     stale_after_s: float = 3.0  # latest_from(): older data is "no data" [s]
     criteria: LeaderCriteria = field(default_factory=LeaderCriteria)
+    table_frames: int | None = None  # replaced by map_memory_s; refused with the conversion when given
 
     def __post_init__(self) -> None:
-        if self.table_frames < 1:
-            raise ValueError("obu.table_frames must be >= 1")
+        if self.table_frames is not None:
+            raise ValueError(
+                f"obu.table_frames was replaced by obu.map_memory_s, in seconds: {self.table_frames} frames of "
+                f"sotdma.frame_s (1 s by default) = {self.table_frames:g} s"
+            )
+        if not 0 < self.map_memory_s <= 60:
+            raise ValueError(f"obu.map_memory_s must be in (0, 60] s, got {self.map_memory_s}")
         if not self.stale_after_s > 0:
             raise ValueError("obu.stale_after_s must be > 0")
+        if self.stale_after_s > self.map_memory_s:
+            raise ValueError(
+                f"obu.stale_after_s ({self.stale_after_s} s) must not exceed obu.map_memory_s "
+                f"({self.map_memory_s} s): data the map has forgotten cannot be fresh"
+            )
 
 
 # A transmitted CAM as stored for receivers: the CAM fields plus where/when it went on the air.
@@ -433,8 +455,8 @@ class ObuView:
         return neighbour_table(self.records.get(seqs), seqs, self.now_us, self.own, self.params.extrapolation)
 
     def neighbours(self, max_age_s: float | None = None) -> NeighbourTable:
-        """Stations whose newest CAM was delivered within max_age_s (default: table_frames frames)."""
-        max_age_us = self.params.table_frames * self.frame_us if max_age_s is None else round(max_age_s * 1e6)
+        """Stations whose newest CAM was delivered within max_age_s (default: the map memory)."""
+        max_age_us = round((self.params.map_memory_s if max_age_s is None else max_age_s) * 1e6)
         seqs = self.heard_row[self.records.valid(self.heard_row)]
         if seqs.size:
             fresh = self.records.get(seqs)["rx_us"] >= self.now_us - max_age_us

@@ -80,12 +80,28 @@ def test_a_folder_created_for_a_run_that_fails_with_a_user_error_is_removed(tmp_
         ({"seed": -1}, "config seed: must be an integer from 0 to"),
         ({"seed": SEED_MAX + 1}, "config seed: must be an integer from 0 to"),
         ({"ego": {"driver_seed": -2}}, "config ego.driver_seed: must be"),
+        ({"vanet": {"obu": {"table_frames": 5}}}, "replaced by obu.map_memory_s"),
+        ({"vanet": {"obu": {"map_memory_s": 0}}}, "map_memory_s must be in (0, 60]"),
+        # system B's no-data timeout must fit the OBU map's memory
+        (
+            {"vanet": {"obu": {"map_memory_s": 2.5, "stale_after_s": 2.0}}},
+            "must not exceed vanet.obu.map_memory_s",
+        ),
+        ({"adas": {"v2v": {"max_data_age_s": 6.0}}}, "must not exceed vanet.obu.map_memory_s (5.0 s)"),
     ],
 )
 def test_run_config_refuses_values_no_run_can_have(data, words):
     with pytest.raises(ConfigError) as err:
         from_dict(RunConfig, data)
     assert words in str(err.value)
+
+
+def test_system_b_timeout_up_to_the_map_memory_is_accepted():
+    cfg = from_dict(
+        RunConfig, {"vanet": {"obu": {"map_memory_s": 6.0}}, "adas": {"v2v": {"max_data_age_s": 6.0}}}
+    )
+    assert cfg.vanet.obu.map_memory_s == cfg.adas.v2v.max_data_age_s == 6.0
+    assert from_dict(RunConfig, {"vanet": None, "adas": {"v2v": {"max_data_age_s": 9.0}}}).vanet is None
 
 
 def test_the_largest_seed_is_accepted():

@@ -116,7 +116,12 @@ def test_view_table_ages_and_latest_from_with_staleness():
     heard[4] = seqs[2]
     view = ObuView(store, heard, NOW_US, OWN, ObuParams(), 1_000_000, receiver_slot=0)
     nb = view.neighbours()
-    assert nb.station_id.tolist() == [7]  # station 9 last heard 6 s ago: outside the 5-frame map
+    assert nb.station_id.tolist() == [7]  # station 9 last heard 6 s ago: outside the 5-s map memory
+    # the memory is a time: the same with 100-ms frames, and it follows map_memory_s
+    fast = ObuView(store, heard, NOW_US, OWN, ObuParams(), 100_000, receiver_slot=0)
+    assert fast.neighbours().station_id.tolist() == [7]
+    longer = ObuView(store, heard, NOW_US, OWN, ObuParams(map_memory_s=6.1), 1_000_000, receiver_slot=0)
+    assert longer.neighbours().station_id.tolist() == [7, 9]
     assert view.neighbours(max_age_s=10.0).station_id.tolist() == [7, 9]
     cam, age = view.latest_from(7)
     assert cam is not None and age == pytest.approx(0.2)
@@ -142,7 +147,13 @@ def test_record_store_grows_instead_of_dropping_young_records():
 
 
 def test_params_validation():
-    with pytest.raises(ValueError):
-        ObuParams(table_frames=0)
+    with pytest.raises(ValueError, match="replaced by obu.map_memory_s.*5 s"):
+        ObuParams(table_frames=5)
+    for bad in (0.0, -1.0, 61.0):
+        with pytest.raises(ValueError, match="map_memory_s"):
+            ObuParams(map_memory_s=bad)
+    with pytest.raises(ValueError, match="must not exceed obu.map_memory_s"):
+        ObuParams(map_memory_s=2.0, stale_after_s=3.0)
+    assert ObuParams().map_memory_s == 5.0  # the paper's five frames of 1 s
     with pytest.raises(ValueError):
         LeaderCriteria(time_gap_max_s=0.0)
