@@ -173,6 +173,16 @@ def _compare(args) -> int:
     return 0 if result.ok else 1
 
 
+def _vanet_mac(log) -> str:
+    """The run's medium access (``vanet.mac`` of the config in the log's metadata; logs from before issue
+    18 have none: SOTDMA, the only MAC then)."""
+    try:
+        cfg = json.loads(log.metadata.get("cosim", {}).get("config", "{}"))
+    except ValueError:
+        return "unknown"
+    return ((cfg or {}).get("vanet") or {}).get("mac", "sotdma")
+
+
 def _vanet_report(args) -> int:
     import json
 
@@ -183,38 +193,53 @@ def _vanet_report(args) -> int:
     log = read(args.file, topics=["/vanet/tx", "/vanet/rx", "/vanet/load", "/vanet/step"])
     if "/vanet/tx" not in log.topics:
         raise CosimError(f"{args.file} has no /vanet/* topics: the run had the radio off (vanet: null)")
-    print(json.dumps(vanet_report(log.topics, out, title=run_title(log.metadata)), indent=1, default=str))
+    mac = _vanet_mac(log)  # the radio access, in the summary and every plot title (issue 18)
+    summary = vanet_report(log.topics, out, title=f"{run_title(log.metadata)}, MAC {mac}")
+    print(json.dumps({"mac": mac, **summary}, indent=1, default=str))
     print(f"plots in {out}/")
     return 0
 
 
 def _radio(args) -> int:
-    from cosim.vanet.radio import RadioScenario, plot, run_radio
+    from cosim.vanet.radio import RadioScenario, plot, plot_many, run_radio, run_radios
 
+    macs = [m.strip() for m in str(args.mac).split(",")]
+    if len(set(macs)) != len(macs) or "" in macs:
+        raise CosimError(
+            f"--mac {args.mac}: give distinct MAC names separated by commas (e.g. sotdma,80211p,cv2x)"
+        )
     try:
-        sc = RadioScenario(mac=args.mac, layout=args.layout, vehicles_per_km=args.vehicles_per_km,
-                           stations=args.stations, area_m=args.area_m, lanes=args.lanes, speed_kmh=args.speed_kmh,
-                           rate_hz=args.rate_hz, size_bytes=args.size_bytes, tx_dbm=args.tx_dbm,
-                           pathloss=args.pathloss, shadowing_db=args.shadowing_db, noise_dbm=args.noise_dbm,
-                           cs_dbm=args.cs_dbm, duration_s=args.duration, seed=args.seed)  # fmt: skip
+        scs = [RadioScenario(mac=mac, layout=args.layout, vehicles_per_km=args.vehicles_per_km,
+                             stations=args.stations, area_m=args.area_m, lanes=args.lanes, speed_kmh=args.speed_kmh,
+                             rate_hz=args.rate_hz, size_bytes=args.size_bytes, tx_dbm=args.tx_dbm,
+                             pathloss=args.pathloss, shadowing_db=args.shadowing_db, noise_dbm=args.noise_dbm,
+                             cs_dbm=args.cs_dbm, duration_s=args.duration, seed=args.seed) for mac in macs]  # fmt: skip
     except ValueError as exc:
         raise CosimError(str(exc)) from None
     out = check_dir(args.out) if args.out else None
-    result = run_radio(sc)
+    if len(scs) == 1:
+        results = [run_radio(scs[0])]
+    else:  # the MACs side by side: same layout, seed, channel and receiver
+        results, hists = run_radios(scs)
+    payload = results[0] if len(scs) == 1 else results
     if out is not None:
         Path(out).mkdir(parents=True, exist_ok=True)
-        (Path(out) / "radio.json").write_text(json.dumps(result, indent=1) + "\n")
-        plot(result, sc, out)
+        (Path(out) / "radio.json").write_text(json.dumps(payload, indent=1) + "\n")
+        if len(scs) == 1:
+            plot(results[0], scs[0], out)
+        else:
+            plot_many(results, scs, hists, out)
     if args.json:
-        print(json.dumps(result))
-    else:
+        print(json.dumps(payload))
+        return 0
+    for result in results:
         print(f"{result['mac']}, {result['stations']} stations: cbr {result['cbr']:.3f}, shared slots "
               f"{result['shared_slot_share']}, never sent {result['never_sent_share']:.3f}, "
               f"IPG p95 {result['ipg_p95_s']:.3f} s")  # fmt: skip
         for b in result["pdr"]:
             print(f"  {b['from_m']:6.0f}-{b['to_m']:<6.0f} m  PDR {b['pdr']:.3f}  (n={b['n']})")
-        if out is not None:
-            print(f"plot and radio.json in {out}/")
+    if out is not None:
+        print(f"plot and radio.json in {out}/")
     return 0
 
 
@@ -281,7 +306,9 @@ def build_parser() -> argparse.ArgumentParser:
     ra = sub.add_parser(
         "radio", help="synthetic radio calibration scenario: PDR vs distance, CBR, shared slots"
     )
-    ra.add_argument("--mac", default="sotdma", help="medium access: sotdma (80211p, cv2x: not yet)")
+    ra.add_argument("--mac", default="sotdma",
+                    help="medium access: sotdma, 80211p or cv2x; several, comma-separated (sotdma,80211p,cv2x), "
+                         "run on the same layout and seed and are overlaid in one plot")  # fmt: skip
     ra.add_argument("--layout", choices=("highway", "square"), required=True)
     dens = ra.add_mutually_exclusive_group(required=True)
     dens.add_argument("--vehicles-per-km", type=float, help="highway density, all lanes together")

@@ -22,10 +22,15 @@ it is never sent. Metrics count from ``warmup_s`` on (network entry is a transie
 * never_sent_share: generated CAMs never sent; ipg_p95_s: 95th percentile of the time between consecutive
   decoded CAMs of a (receiver, sender) pair.
 
-MACs are looked up in ``MACS`` (name -> class); SOTDMA is the one there is. Another MAC plugs in with a class
-that has ``__init__(scenario, n_stations, rng)``, ``start(stations, t_us)``, and ``window(t_lo_us, t_hi_us,
-pending, evaluate)``, where ``evaluate(tx_station, tx_group) -> Links`` runs the aether (and the shared
-receiver) on its transmissions; ``window`` returns (tx_station, tx_group, links, shared) for the window.
+MACs are looked up in ``MACS`` (name -> class): ``sotdma``, ``80211p`` and ``cv2x`` (issue 18; the last two
+through the common MAC interface, ``radio_macs.py``, on the same aether and receiver). A MAC class has
+``__init__(scenario, n_stations, rng)``, ``start(stations, t_us)``, and ``window(t_lo_us, t_hi_us, pending,
+evaluate)``, where ``evaluate(tx_station, tx_group) -> Links`` runs the aether (and the shared receiver) on
+its transmissions; ``window`` returns (tx_station, tx_group, links, air time [us]) for the window. Optional:
+``bind(aether, xy)`` (the scenario's aether and live positions, before any window) and ``tx_gen(gen_of,
+tx_station)`` (the generation step of the CAM each transmission carries, when it is not the pending one).
+``cosim radio --mac sotdma,80211p,cv2x`` runs each on the same layout and seed (``run_radios``) and overlays
+their PDR and inter-packet-gap curves (``plot_many``).
 """
 
 from __future__ import annotations
@@ -161,7 +166,13 @@ class SotdmaRadioMac:
         return tx.station, tx.g, links, np.full(tx.g.size, self.air_us)
 
 
-MACS = {"sotdma": SotdmaRadioMac}
+def _interface_macs() -> dict:
+    from cosim.vanet.radio_macs import Cv2xRadioMac, Ieee80211pRadioMac
+
+    return {"80211p": Ieee80211pRadioMac, "cv2x": Cv2xRadioMac}
+
+
+MACS = {"sotdma": SotdmaRadioMac, **_interface_macs()}
 
 
 def _positions(sc: RadioScenario, rng: np.random.Generator):
@@ -176,15 +187,18 @@ def _positions(sc: RadioScenario, rng: np.random.Generator):
     return np.stack([x, y], axis=1), v
 
 
-def run_radio(sc: RadioScenario, link_level: bool = False):
+def run_radio(sc: RadioScenario, link_level: bool = False, details: dict | None = None):
     """Run the scenario: the ``cosim radio --json`` object; with ``link_level`` also the link-level PDR
-    bands (sent CAMs only: what a PHY reference such as ns-3 with one sender measures) as a second value."""
+    bands (sent CAMs only: what a PHY reference such as ns-3 with one sender measures) as a second value.
+    ``details`` (a dict) receives ``ipg_hist``: counts of inter-packet gaps in 1-ms bins (last: >= 10 s)."""
     rng = np.random.default_rng(sc.seed)
     place_rng, mac_rng, phase_rng, field_rng = rng.spawn(4)
     n = sc.n_stations
     xy, vel = _positions(sc, place_rng)
     aether = Aether(sc.channel(), [], rng=field_rng)
     mac = MACS[sc.mac](sc, n, mac_rng)
+    if hasattr(mac, "bind"):
+        mac.bind(aether, xy)
     stations = np.arange(n)
     period_ms = round(1000 / sc.rate_hz)
     step_ms = math.gcd(100, period_ms)
@@ -231,10 +245,10 @@ def run_radio(sc: RadioScenario, link_level: bool = False):
             return aether.links(xy[tx_station], tx_station, tx_group, xy, stations)
 
         tx_st, tx_g, links, air = mac.window(t_us, t_us + step_ms * 1000, pending, evaluate)
+        cam_gen = mac.tx_gen(gen_of, tx_st) if hasattr(mac, "tx_gen") else gen_of[tx_st]
         if k < warm_step:
             continue
         lt, lr, dist = links.decoded()
-        cam_gen = gen_of[tx_st]
         sent_meas = ((cam_gen >= warm_step) & (cam_gen < stop_gen_step)).nonzero()[0]
         if sent_meas.size:
             s_st = tx_st[sent_meas]
@@ -269,6 +283,8 @@ def run_radio(sc: RadioScenario, link_level: bool = False):
         else (xy[:, 0] >= margin) & (xy[:, 0] <= sc.side_m - margin)
     )
     cbr = float(np.mean(busy_us[counted_final]) / (measured_s * 1e6)) if counted_final.any() else 0.0
+    if details is not None:
+        details["ipg_hist"] = app.ipg_hist
     ipg_p95 = hist_percentile(app.ipg_hist, 95)
     bands = app.pdr_bands()
     result = {
@@ -322,3 +338,64 @@ def plot(result: dict, sc: RadioScenario, out_dir: str | Path) -> Path:
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def run_radios(scenarios: list[RadioScenario]) -> tuple[list[dict], list[np.ndarray]]:
+    """Run the same scenario with each MAC (same layout, seed, channel, receiver): (results, IPG histograms)."""
+    results, hists = [], []
+    for sc in scenarios:
+        d: dict = {}
+        results.append(run_radio(sc, details=d))
+        hists.append(d["ipg_hist"])
+    return results, hists
+
+
+def plot_many(results: list[dict], scenarios: list[RadioScenario], ipg_hists, out_dir: str | Path) -> Path:
+    """The MACs side by side: PDR vs distance and the inter-packet-gap CCDF, one line per MAC, into
+    out_dir/pdr_vs_distance.png."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4.5), gridspec_kw={"width_ratios": [3, 2]})
+    for res, hist in zip(results, ipg_hists, strict=True):
+        c = [0.5 * (b["from_m"] + b["to_m"]) for b in res["pdr"]]
+        ax.plot(
+            c,
+            [b["pdr"] for b in res["pdr"]],
+            marker="o",
+            ms=3,
+            lw=1.2,
+            label=MAC_LABELS.get(res["mac"], res["mac"]),
+        )
+        h = np.asarray(hist, dtype=np.float64)
+        if h.sum() > 0:
+            ccdf = 1.0 - np.cumsum(h) / h.sum()
+            t = np.arange(h.size) / 1000.0
+            keep = ccdf > 0
+            bx.step(t[keep], ccdf[keep], where="post", lw=1.2, label=MAC_LABELS.get(res["mac"], res["mac"]))
+    ax.set_xlabel("distance [m] (50-m bands)")
+    ax.set_ylabel("packet delivery ratio (never-sent CAMs lost)")
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left")
+    bx.set_xlabel("inter-packet gap of a (receiver, sender) pair [s]")
+    bx.set_ylabel("P(gap > x)")
+    bx.set_yscale("log")
+    bx.set_xlim(0, 1.0)
+    bx.grid(alpha=0.3, which="both")
+    bx.legend(loc="upper right")
+    sc = scenarios[0]
+    macs = ", ".join(s.mac for s in scenarios)
+    fig.suptitle(title(sc).replace(f": {sc.mac},", f": {macs},"), fontsize=8)
+    path = out / "pdr_vs_distance.png"
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+MAC_LABELS = {"sotdma": "SOTDMA", "80211p": "IEEE 802.11p (EDCA AC_BE)", "cv2x": "C-V2X mode 4 (SB-SPS)"}

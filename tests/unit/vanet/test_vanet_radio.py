@@ -80,7 +80,7 @@ def test_cli_json_shape_plot_and_bad_values(tmp_path, capsys):
     )
     assert res["pdr"][0]["from_m"] == 0.0
     assert (out / "pdr_vs_distance.png").stat().st_size > 1000
-    for bad in (["--mac", "80211p"], ["--pathloss", "nope"], ["--lanes", "0"]):
+    for bad in (["--mac", "wifi"], ["--mac", "sotdma,sotdma"], ["--pathloss", "nope"], ["--lanes", "0"]):
         args = ["radio", "--layout", "highway", "--vehicles-per-km", "20", "--rate-hz", "10", "--size-bytes",
                 "200", "--tx-dbm", "13", "--pathloss", "free-space", *bad]  # fmt: skip
         assert main(args) == 2
