@@ -22,7 +22,10 @@ arise naturally: a station cannot know slots used by stations it cannot hear):
    new reservations before they are used);
 3. continuous operation: every use of a slot announces its remaining timeout and then counts it down; at
    timeout 0 the station picks a new slot in the same SI of the next frame and announces its offset in
-   that last transmission.
+   that last transmission. When that use carries no CAM (nothing is sent), the station's next transmission
+   announces the offset instead (ITU-R M.1371 Annex 2 changes allocations with ITDMA, whose communication
+   state carries the slot increment and the keep flag); receivers hold an announced slot for
+   ``timeout_min_frames``.
 
 Candidate set (ITU-R M.1371): the free slots of the SI (by the station's own map); when fewer than
 ``min_candidates`` (4) are free, the set is filled with slots reserved by the farthest stations heard; when
@@ -255,6 +258,8 @@ class SotdmaMac:
         self.n_started = 0  # 1 + the highest slot ever started: stations from there on are idle (not scanned)
         self.capacity = 0
         self._deferred: list[tuple[int, int, int, int]] = []  # reselections left to resolve()
+        # station -> new slots (global) chosen at a use that carried no CAM, to announce in its next transmission
+        self._unannounced: dict[int, list[int]] = {}
         self._deferred_tx: Transmissions | None = None
         self._alloc(capacity)
 
@@ -307,6 +312,8 @@ class SotdmaMac:
         self.map_dist[slots] = 0.0
 
     def stop(self, slots: np.ndarray) -> None:
+        for st in np.atleast_1d(slots).tolist():
+            self._unannounced.pop(st, None)
         self.state[slots] = IDLE
         self.res_slot[slots] = -1
         self.res_nominal[slots] = -1
@@ -524,6 +531,21 @@ class SotdmaMac:
                 later = [x for x in res_next_g[s].tolist() if x > g]
                 later += [x for x in later_uses[s] if x > g]
                 offsets[k] = min(later) - g if later else 0
+        # a move decided at a use that sent nothing (no CAM waiting) is announced by the station's next
+        # transmission with room for it (not one announcing its own move or next slot): ITU-R M.1371 Annex 2
+        # changes allocations with ITDMA (§3.3.4), whose communication state carries the slot increment to the
+        # allocated slot and the keep flag (held on: receivers keep it reserved, see ``hear``)
+        if self._unannounced:
+            for k, (g, s) in enumerate(sent):
+                todo = self._unannounced.get(s)
+                if todo is None or offsets[k] != 0 or sent_tau[k] == 0:
+                    continue
+                while todo and todo[0] <= g:  # its first use came first: announced by that use
+                    todo.pop(0)
+                if todo:
+                    offsets[k] = todo.pop(0) - g
+                if not todo:
+                    del self._unannounced[s]
         tx = Transmissions(
             np.array([s for _, s in sent], dtype=np.int32),
             np.array([g for g, _ in sent], dtype=np.int64),
@@ -567,9 +589,11 @@ class SotdmaMac:
             # the nominal occurrence this use belongs to, then the same one a frame later
             centre = [g + (nom - g % n + n // 2) % n - n // 2 + n for nom in nominal]
             new_g = self._assign(rs, rj, nominal, centre, delta, g + 1).tolist()
-            for (_, _, _, kk), gn in zip(group, new_g, strict=True):
+            for (_, s, _, kk), gn in zip(group, new_g, strict=True):
                 if kk >= 0:
                     tx.offset[kk] = gn - g
+                else:  # nothing sent in the slot left: the station's next transmission announces it
+                    bisect.insort(self._unannounced.setdefault(s, []), gn)
 
     def hear(
         self,

@@ -14,16 +14,16 @@ NS3 = Path(__file__).resolve().parents[3] / "validation" / "ns3" / "ns3_highway_
 
 
 def test_slot_order_sotdma_shares_few_slots_with_all_stations_in_mutual_range():
-    # issue 17: 100 stations in a 300 m square, 10 Hz. Before slot-order decisions 24 % of the
-    # transmissions shared a slot (seconds 10-30, the layer's default CAMs); now 0.6-1.7 % in steady state
-    # (seconds 20-40, seeds 1-2), above the 1 % target for some seeds (see the README)
+    # issue 17 target: <= 1 % of the transmissions share a slot with 100 stations in mutual range (300 m
+    # square), 10 Hz, for every seed (seconds 20-40: steady state). Measured: 24 % before slot-order decisions;
+    # 0.17-1.73 % with them (seeds 1-3); 0.32-0.80 % once a move decided at a use without a CAM is announced by
+    # the station's next transmission (seeds 1-8: 0.15-0.80 %)
     shares = []
-    for seed in (1, 2):
+    for seed in (1, 2, 3):
         sc = RadioScenario(layout="square", stations=100, area_m=300, rate_hz=10, size_bytes=243, tx_dbm=13,
                            duration_s=40, warmup_s=20, seed=seed)  # fmt: skip
         shares.append(run_radio(sc)["shared_slot_share"])
-    assert max(shares) <= 0.02
-    assert np.mean(shares) <= 0.015
+    assert max(shares) <= 0.01, shares
 
 
 def test_never_sent_cams_count_as_lost():

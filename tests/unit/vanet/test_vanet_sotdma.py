@@ -246,3 +246,32 @@ def test_a_reservation_made_earlier_in_the_step_is_seen_by_later_choosers():
 
 def n_plus(slot: int, n: int = 100) -> int:
     return n + slot
+
+
+def test_a_move_decided_at_a_silent_use_is_announced_by_the_next_transmission():
+    """Station 0 reaches timeout 0 at slot 10 with no CAM waiting: it sends nothing there, so its next
+    transmission (slot 30, a CAM) carries the offset to the new slot (ITU-R M.1371 ITDMA slot increment), and a
+    neighbour that decodes it holds that slot; without a transmission in between, the move stays unknown."""
+    n = 100
+    p = SotdmaParams(n_slots=n, listen_frames=0, min_candidates=1, selection_interval_frac=0.1)
+    mac = SotdmaMac(p, n, 2, np.random.default_rng(0))
+    mac.start(np.array([0, 1]), 0)
+    mac.rate[:] = 2
+    mac.enter(0)
+    mac.force_reservation(0, 0, 10, 10, timeout=0)
+    mac.force_reservation(0, 1, 30, 30, timeout=5)
+    mac.res_nominal[0, 0], mac.res_nominal[0, 1] = 10, 30
+    mac.res_next_g[1] = -1  # station 1 only listens
+    mac.first_frame_end_g[:] = 0
+    tx = mac.transmissions(0, 20, np.array([False, False]))  # slot 10 used without a CAM: silent
+    assert tx.g.size == 0
+    mac.resolve(tx)
+    new_g = int(mac.res_next_g[0, 0])
+    assert n <= new_g < 2 * n and mac.res_timeout[0, 0] >= p.timeout_min_frames
+    tx = mac.transmissions(20, 50, np.array([True, False]))  # slot 30 carries a CAM
+    mac.resolve(tx)
+    assert tx.g.tolist() == [30] and tx.timeout.tolist() == [5]
+    assert tx.offset.tolist() == [new_g - 30]  # the announcement of the move
+    mac.hear(np.array([1]), np.array([0]), tx.g, tx.timeout, tx.offset, np.array([40.0], dtype=np.float32))
+    assert mac.map_until[1, new_g % n] >= new_g // n + p.timeout_min_frames  # station 1 holds the new slot
+    assert not mac._unannounced  # announced once
