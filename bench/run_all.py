@@ -25,6 +25,11 @@ BENCHES = [
     ),
     ("vanet", "VANET layer alone, synthetic traffic on Helsinki roads (issue: VANET)", ["bench.bench_vanet"]),
     ("radio", "cosim radio cost per simulated second (issue 17)", ["bench.bench_radio"]),
+    (
+        "mac",
+        "MAC cost per simulated second: SOTDMA, IEEE 802.11p, C-V2X mode 4 (issue 18)",
+        ["bench.bench_mac"],
+    ),
     ("ego", "MuJoCo ego cost (issue: ego)", ["bench.bench_ego"]),
     (
         "experiment",

@@ -228,7 +228,7 @@ class Mac80211p:
             return out
         # received power from every potential transmitter (frames + tails) at every station
         rows = np.concatenate([frames, tail_idx]).astype(np.int64)
-        lp = inp.link(inp.xy[rows], inp.xy)
+        lp = inp.link(inp.xy[rows], inp.xy, tx_rows=rows)
         power = lp.power_dbm
         tx_row_of = np.full(n, -1, dtype=np.int64)
         tx_row_of[frames] = np.arange(frames.size)
@@ -372,7 +372,7 @@ class Mac80211p:
     def _busy_from_tail(self, out, inp, tail, tail_idx, t0, t1) -> None:
         if not tail:
             return
-        lp = inp.link(inp.xy[tail_idx], inp.xy)
+        lp = inp.link(inp.xy[tail_idx], inp.xy, tx_rows=tail_idx)
         hear = lp.power_dbm >= np.float32(self._rx.cs_threshold_dbm)
         ends = np.array([min(a + d, t1) for _, a, d in tail], dtype=np.float64)
         out.busy_us = np.where(hear, (ends - t0)[:, None], 0.0).max(axis=0)

@@ -213,7 +213,7 @@ class MacCv2x:
             out.taken = np.zeros(n, dtype=bool)
             out.tx_held = np.zeros(0, dtype=bool)
             return out
-        lp = inp.link(inp.xy[frames], inp.xy)
+        lp = inp.link(inp.xy[frames], inp.xy, tx_rows=frames)
         self._power = lp.power_dbm
         self._in_range_all = lp.in_range
         self._lp = lp
@@ -321,14 +321,16 @@ class MacCv2x:
             ksf, kc = a["key_sf"], a["key_c"]
             win = (ksf >= nn - p.sensing_ms) & (ksf < nn)
             if win.any() and a["rssi"].shape[0]:
-                o = (ksf[win] - nn - p.t1_ms) % p.rri_ms
-                okw = o < W
-                vals = a["rssi"][win][okw][:, pos] * have[None, :]
-                rssi[:, o[okw], kc[win][okw]] += vals.T
+                wi = np.flatnonzero(win)
+                o = (ksf[wi] - nn - p.t1_ms) % p.rri_ms
+                wi, o = wi[o < W], o[o < W]
+                # the B columns first, then the rows: a (U, N) archive is never copied whole
+                vals = a["rssi"][:, pos][wi] * have[None, :]
+                rssi[:, o, kc[wi]] += vals.T  # (sf, c) keys of one archive (one RRI) are unique
             tsf = a["tx_sf"]
             rec = (tsf >= nn - p.rri_ms) & (tsf < nn) & a["tx_keep"]
             if rec.any():
-                r = a["rsrp"][rec][:, pos]  # (K, B)
+                r = a["rsrp"][:, pos][rec]  # (K, B)
                 r = np.where(have[None, :], r, -np.inf)
                 kk, bb = np.nonzero(np.isfinite(r))
                 sci_o.append((tsf[rec][kk] + p.rri_ms) - nn - p.t1_ms)
@@ -361,15 +363,16 @@ class MacCv2x:
                 so, sx, sl, sr = sci_o[m], sci_x[m], sci_L[m], sci_rsrp[m]
             else:
                 so = sx = sl = sr = np.zeros(0)
-            # overlap of each SCI's subchannels with each candidate start x: (S, nx)
+            # overlap of each SCI's subchannels with each candidate start x: (S, nx); per candidate the
+            # strongest overlapping SCI's RSRP, so that each threshold raise is one comparison
             ov = (sx[:, None] < sub[None, :nx] + L) & (sub[None, :nx] < (sx + sl)[:, None])
+            strongest = np.full((W, nx), -np.inf)
+            if so.size:
+                oo, xx = np.nonzero(ov)
+                np.maximum.at(strongest, (so[oo].astype(np.int64), xx), sr[oo])
             th = p.rsrp_threshold_dbm
             while True:
-                excl = blocked_own.copy()
-                hit = sr > th
-                if hit.any():
-                    oo, xx = np.nonzero(ov[hit])
-                    excl[so[hit][oo].astype(np.int64), xx] = True
+                excl = blocked_own | (strongest > th)
                 if (~excl).sum() >= p.candidate_ratio * m_total or th > 0:
                     break
                 th += p.rsrp_step_db
@@ -457,8 +460,8 @@ class MacCv2x:
         rsrp = pw - (10.0 * np.log10(12.0 * L * rbs))[:, None].astype(np.float32)  # per resource element
         sci_ok = (sci_sinr >= self._sci_min) & ~hd & np.isfinite(pw)
         sci_ok[np.arange(k.size), k] = False
-        rssi_dbm = 10.0 * np.log10(S + noise_rb * rbs)
-        busy = (rssi_dbm > p.cbr_rssi_threshold_dbm).sum(axis=0) * (1000.0 / C)
+        # S-RSSI above the CBR threshold, compared in mW (no log of the (U, N) matrix)
+        busy = ((S + noise_rb * rbs) > 10.0 ** (p.cbr_rssi_threshold_dbm / 10.0)).sum(axis=0) * (1000.0 / C)
         self._sensed.append(
             {
                 "st": self._st,
@@ -528,11 +531,16 @@ class MacCv2x:
         ri = np.concatenate([o[5] for o in self._outs])
         pwr = np.concatenate([o[6] for o in self._outs])
         oc = np.concatenate([o[7] for o in self._outs])
-        order = np.lexsort((k, sf))  # already in order per chunk; chunks are in time order
-        inv = np.empty_like(order)
-        inv[order] = np.arange(order.size)
-        ti = inv[ti]
-        lo = np.lexsort((ri, ti))
+        # each chunk is sorted by (subframe, station) and chunks are in time order: usually no sort is needed
+        if np.all((sf[1:] > sf[:-1]) | ((sf[1:] == sf[:-1]) & (k[1:] > k[:-1]))):
+            order = np.arange(k.size)
+            lo = np.arange(ti.size)  # nonzero() gives (ti, ri) sorted per chunk, chunks in tx order
+        else:
+            order = np.lexsort((k, sf))
+            inv = np.empty_like(order)
+            inv[order] = np.arange(order.size)
+            ti = inv[ti]
+            lo = np.lexsort((ri, ti))
         sent = np.zeros(n, dtype=bool)
         sent[k[~hl]] = True
         out = MacOutput(
