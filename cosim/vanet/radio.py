@@ -17,8 +17,13 @@ it is never sent. Metrics count from ``warmup_s`` on (network entry is a transie
 * pdr per 50-m band (from 0 m): decoded (receiver, CAM) pairs / (receiver, generated CAM) pairs at that
   distance at generation: CAMs never sent count as lost (application level);
 * cbr: the channel busy ratio each counted station senses (energy >= the CS threshold), averaged;
-* shared_slot_share: transmissions whose slot also carries a transmission of a sender within the
-  communication range (with every station in mutual range: map-wide sharing); null for MACs without slots;
+* shared_slot_share: transmissions whose slot also carries a transmission of a sender that can hurt it:
+  closer than ``hurt_radius_m`` = the decoding range (``Aether.comm_range_m``: the sensitivity reached, with
+  the shadowing tail) + the interference range (``Aether.link_range_m``: the other sender still at or above
+  the receiver's interference floor, noise - 20 dB by default, or the sensitivity under the paper's rule),
+  i.e. some receiver that can decode the one hears the other above the floor, so the receiver model
+  counts it (13 dBm, free space: 0.5 + 10.2 km, WINNER+ B1: 0.3 + 1.3 km; paper rule, free space: 2 x
+  0.5 km). Null for MACs without slots;
 * never_sent_share: generated CAMs never sent; ipg_p95_s: 95th percentile of the time between consecutive
   decoded CAMs of a (receiver, sender) pair.
 
@@ -187,6 +192,29 @@ def _positions(sc: RadioScenario, rng: np.random.Generator):
     return np.stack([x, y], axis=1), v
 
 
+def hurt_radius_m(aether: Aether) -> float:
+    """Two same-slot senders closer than this can hurt each other: a receiver within the decoding range of
+    one (``comm_range_m``) can be within the interference range of the other (``link_range_m``: at or above
+    the receiver's interference floor; both include the aether's shadowing tail)."""
+    return float(aether.comm_range_m + aether.link_range_m)
+
+
+def shared_slot_mask(tx_g: np.ndarray, tx_xy: np.ndarray, radius_m: float) -> np.ndarray:
+    """(T,) bool: transmissions whose slot (``tx_g``) carries another one from a sender within radius_m."""
+    shared = np.zeros(tx_g.size, dtype=bool)
+    order = np.argsort(tx_g, kind="stable")
+    g_sorted = tx_g[order]
+    starts = np.flatnonzero(np.r_[True, g_sorted[1:] != g_sorted[:-1]])
+    ends = np.r_[starts[1:], g_sorted.size]
+    for a, z in zip(starts[ends - starts > 1].tolist(), ends[ends - starts > 1].tolist(), strict=True):
+        idx = order[a:z]  # a few per window
+        p = tx_xy[idx]
+        d = np.hypot(p[:, None, 0] - p[None, :, 0], p[:, None, 1] - p[None, :, 1])
+        np.fill_diagonal(d, np.inf)
+        shared[idx] = (d <= radius_m).any(axis=1)
+    return shared
+
+
 def run_radio(sc: RadioScenario, link_level: bool = False, details: dict | None = None):
     """Run the scenario: the ``cosim radio --json`` object; with ``link_level`` also the link-level PDR
     bands (sent CAMs only: what a PHY reference such as ns-3 with one sender measures) as a second value.
@@ -212,6 +240,7 @@ def run_radio(sc: RadioScenario, link_level: bool = False, details: dict | None 
     pending_gen = np.full(n, -1, dtype=np.int64)  # step at which the pending CAM was generated
     started = np.zeros(n, dtype=bool)
     margin = aether.comm_range_m  # no link beyond it is ever decoded
+    hurt_m = hurt_radius_m(aether)
     n_bands = int(math.ceil(aether.comm_range_m / BAND_M))
     app = AppMetrics(n_bands, n * n)  # PDR, IPG, AoI per band (metrics.py); pair: receiver * n + sender
     generated = dropped = 0
@@ -264,15 +293,7 @@ def run_radio(sc: RadioScenario, link_level: bool = False, details: dict | None 
         if k < stop_gen_step and tx_g.size:
             tx_total += tx_g.size
             if getattr(mac, "has_slots", False):
-                order = np.argsort(tx_g, kind="stable")
-                g_sorted = tx_g[order]
-                same = np.flatnonzero(g_sorted[1:] == g_sorted[:-1])
-                shared = np.zeros(tx_g.size, dtype=bool)
-                for i in same.tolist():  # a few per window
-                    a, c = order[i], order[i + 1]
-                    if np.hypot(*(xy[tx_st[a]] - xy[tx_st[c]])) <= aether.comm_range_m:
-                        shared[a] = shared[c] = True
-                tx_shared += int(shared.sum())
+                tx_shared += int(shared_slot_mask(tx_g, xy[tx_st], hurt_m).sum())
         # move (wrap-around on the highway)
         if sc.layout == "highway" and sc.speed_kmh > 0:
             xy[:, 0] = (xy[:, 0] + vel * dt) % sc.side_m

@@ -86,3 +86,31 @@ def test_cli_json_shape_plot_and_bad_values(tmp_path, capsys):
         assert main(args) == 2
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "error" in err
+
+
+def test_shared_slots_count_senders_that_can_hurt_each_other():
+    """Same-slot senders count as sharing when a receiver that can decode one hears the other at or above the
+    receiver's interference floor: radius = decoding range + interference range."""
+    import dataclasses
+
+    from cosim.vanet.channel import Aether
+    from cosim.vanet.radio import hurt_radius_m, shared_slot_mask
+
+    ch = RadioScenario(layout="square", stations=10, pathloss="free-space").channel()
+    sinr, paper = Aether(ch, []), Aether(dataclasses.replace(ch, interference="paper"), [])
+    assert paper.comm_range_m == pytest.approx(510.5, abs=1.0)
+    assert hurt_radius_m(paper) == pytest.approx(
+        2 * paper.comm_range_m
+    )  # the paper: one receiver in both ranges
+    # SINR rule: a receiver at the decoding edge of one sender gets the other exactly at the floor (-115 dBm)
+    r = hurt_radius_m(sinr)
+    p_other = ch.tx_power_dbm - float(sinr.path_loss.loss_db(r - sinr.comm_range_m))
+    assert p_other == pytest.approx(sinr.rx.floor_dbm, abs=0.01) and sinr.rx.floor_dbm == pytest.approx(
+        -115.0, abs=0.1
+    )
+    # slot 5: three senders, two 900 m apart, the third 20 km away; slot 6: one sender
+    g = np.array([5, 6, 5, 5])
+    xy = np.array([[0.0, 0.0], [10.0, 0.0], [900.0, 0.0], [20_000.0, 0.0]])
+    assert shared_slot_mask(g, xy, hurt_radius_m(paper)).tolist() == [True, False, True, False]
+    assert shared_slot_mask(g, xy, 800.0).tolist() == [False, False, False, False]
+    assert shared_slot_mask(g, xy, r).tolist() == [True, False, True, False]
