@@ -5,7 +5,7 @@
 | red light: stop 6 m before the junction | ``jmStoplineGap`` = 6 m (distance kept to a red light's stop line) | SUMO's stop line is at the junction's edge, so the 6 m are counted from there |
 | stop sign: halt (>= 2 frames), go if nobody approaches within 200 m | junction type ``priority_stop`` / ``allway_stop``; ``jmStopSignWait``; ``jmStoplineGapMinor`` = 1 m; ``jmTimegapMinor`` = 200 m / reference major-road speed, capped at ``max_minor_time_gap_s`` | SUMO's gap acceptance is time-based and applies at every minor link, signed or not; the uncapped 14.4 s raised teleports on Krems from 4 % to 6 %, so the default cap is 3 s (set it to 15 for the literal rule) |
 | give-way: slow to 5 km/h, stop if a vehicle approaches within 200 m | the give-way connections get a 5 km/h passage speed, so cars arrive at the line at 5 km/h; same gap rule | the 5 km/h also applies while crossing the junction |
-| keep a 2-s gap to the vehicle ahead | Krauss ``tau`` = 2 s | Krauss keeps *at least* tau; the paper cut speed by 80 % instead |
+| keep a 2-s gap to the vehicle ahead | Krauss ``tau`` = 1 s (SUMO's default reaction time); with ``sigma`` the headways in a platoon spread above it | SUMO's merge check makes the *major* follower keep ``tau`` behind a car entering from a side road: tau = 2 s cut the minor-road capacity to 10-15 % of HCM 2010's at 1200 veh/h (side roads queued for 10 min on Krems); with 1 s merges and crossings stay within x2.2 of HCM 2010 Ch. 19 potential capacity (tests/integration/test_minor_capacity.py) |
 | slow down in curves | netconvert ``--junctions.limit-turn-speed 5.5`` (lateral accel. on junction turns) | curves inside an edge do not lower the speed in SUMO |
 | (drivers avoid a jam they see) | SUMO's rerouting device on every SCV type, period ``reroute_period_s`` | without it every SCV keeps its free-flow A* route into the same bottleneck until SUMO teleports it |
 | per-vehicle max accel / decel, mass, friction | a vTypeDistribution of ``n_vtypes`` types sampled from truncated normals | SUMO has no tyre friction: decel <= mu*g is enforced when sampling |
@@ -39,7 +39,9 @@ class Dist:
 
 @dataclass(frozen=True)
 class ScvBehaviour:
-    time_gap_s: float = 2.0  # desired time gap to the leader (paper: 2 s) [s]
+    time_gap_s: float = (
+        1.0  # Krauss tau: the driver's reaction time, the least time gap kept [s] (see the table)
+    )
     red_light_stop_gap_m: float = 6.0  # SCVs stop this far before the junction at red [m]
     stop_sign_clear_distance_m: float = 200.0  # go only if no foe is within this distance [m]
     reference_major_speed_mps: float = 13.89  # converts the clear distance into SUMO's time gap [m/s]
