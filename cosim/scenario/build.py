@@ -25,7 +25,7 @@ from cosim.scenario.routetable import RouteTable
 from cosim.scenario.signs import SIGN_KINDS, derive_signs, write_signs
 from cosim.sumo_bridge.tools import summarise_warnings, sumo_version
 
-CACHE_FORMAT = 17  # bump when the outputs of a build change for the same inputs
+CACHE_FORMAT = 18  # bump when the outputs of a build change for the same inputs
 NETWORK_FILES = ("network.net.xml", "buildings.poly.xml", "signs.add.xml", "network.json", "netconvert.log")
 SCENARIO_FILES = (*NETWORK_FILES, "routes.rou.xml", "scenario.sumocfg", "report.json")
 
@@ -149,8 +149,17 @@ def _sumocfg(seed: int) -> str:
     </routing>
     <processing>
         <time-to-teleport value="120"/>
-        <!-- vehicles standing in a junction for 20 s no longer block it: resolves OSM-typical deadlocks -->
-        <ignore-junction-blocker value="20"/>
+        <!-- no ignore-junction-blocker: a car that ignores a vehicle standing in the junction drives into it
+             (sumo.dlr.de/docs/sumo.html: "Ignore vehicles which block the junction after they have been
+             standing for SECONDS"); with 20 s, 6 of the 14 Krems collisions in 600 s were a right turn
+             merging into a car that stood at the end of the straight lane (271871456). Default -1 = never -->
+        <!-- a driver waiting at a minor link accepts smaller gaps as the wait grows, reaching full impatience
+             after 60 s instead of SUMO's 180 s, i.e. before time-to-teleport (120 s) removes it
+             (sumo.dlr.de/docs/Simulation/Intersections.html, impatience; sumo.dlr.de/docs/sumo.html
+             time-to-impatience). Resolves right-before-left and merge standoffs that stood until a teleport
+             or, with ignore-junction-blocker, ended in a collision (Krems 860978174, 600 s, seeds 1-3:
+             collisions 4/5/3 -> 0/0/1) -->
+        <time-to-impatience value="60"/>
         <!-- collisions are reported (cosim logs them), on junctions too, and only as a real overlap -->
         <collision.action value="warn"/>
         <collision.check-junctions value="true"/>

@@ -25,6 +25,7 @@ from cosim.scenario.conflicts import (
     fan_out_deletions,
     geometric_prohibitions,
     internal_stop_fixes,
+    separated_shapes,
     turnaround_deletions,
 )
 from cosim.scenario.osm import OsmInfo, SignNode
@@ -57,6 +58,9 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         "--tls.join", "true",
         "--tls.default-type", "static",  # fixed-time plans: deterministic and what the paper's lights do
         "--ramps.guess", "true",
+        # OSM width tags split over the lanes give 1.5-m lanes on narrow two-way streets (Helsinki
+        # Siltavuorenpenger): a 1.8-m car on each touches the oncoming one; every car lane gets the default width
+        "--ignore-widths", "true",
         "--geometry.remove", "true",
         *COMMON_OPTIONS,
         "--output-file", str(out),
@@ -295,6 +299,31 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
 FIX_ROUNDS = 3  # netconvert passes that apply junction fixes; each one's output is checked again
 
 
+_CONN_KEY = ("from", "to", "fromLane", "toLane")
+
+
+def _merge_connection_lines(text: str) -> str:
+    """One ``<connection>`` line per lane pair, its attributes merged (later lines win): netconvert takes a
+    repeated connection as a new definition, and a shape written after a contPos would drop the contPos."""
+    out, merged = [], {}
+    for line in text.splitlines():
+        if not line.strip().startswith("<connection "):
+            out.append(line)
+            continue
+        attrs = dict(re.findall(r'(\w+)=("[^"]*"|\'[^\']*\')', line))
+        key = tuple(attrs.get(k) for k in _CONN_KEY)
+        if key not in merged:
+            merged[key] = {}
+            out.append(key)
+        merged[key].update(attrs)
+    return "\n".join(
+        line
+        if isinstance(line, str)
+        else "    <connection " + " ".join(f"{k}={v}" for k, v in merged[line].items()) + "/>"
+        for line in out
+    )
+
+
 def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, int]:
     """Append the geometric fixes (see ``cosim.scenario.conflicts``) for ``net_file`` to a connection file."""
     deletions = turnaround_deletions(net)
@@ -305,17 +334,21 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
     deleted |= {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in merges}
     prohibitions, pairs = geometric_prohibitions(net_file, deleted)
     stops, moved = internal_stop_fixes(net_file)
+    shapes, separated = separated_shapes(net_file)
     body = con_file.read_text().replace("</connections>\n", "") if con_file.exists() else "<connections>\n"
-    con_file.write_text(body + "\n".join(deletions + fan_outs + stops + prohibitions) + "\n</connections>\n")
+    body = _merge_connection_lines(body + "\n".join(stops + shapes))
+    con_file.write_text(body + "\n" + "\n".join(deletions + fan_outs + prohibitions) + "\n</connections>\n")
     with log.open("a") as fh:
         fh.write(
             "".join(f"{j} {p[0]}->{p[1]} before {q[0]}->{q[1]} ({d} m)\n" for j, p, q, d in pairs)
             + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
             + "".join(line.strip() + "\n" for line in deletions + fan_outs)
+            + "".join(f"{j} {a} / {b}: {d0} m apart -> {d1} m\n" for j, a, b, d0, d1 in separated)
         )
     return {"turnarounds_removed": len(deletions) - len(merges), "lane_fan_outs_removed": len(fan_outs),
             "crossing_merge_lanes_removed": len(merges),
-            "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved)}  # fmt: skip
+            "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved),
+            "internal_lanes_reshaped": len(shapes)}  # fmt: skip
 
 
 def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
