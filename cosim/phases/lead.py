@@ -14,7 +14,11 @@ considerate human leader, so the participant spends the drive following it.
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
   whether the ego, at its present speed, reaches the stop line before the green ends (the programme says
   when); if not, it stops at the line itself and both wait for the next green.
-- A vehicle that comes between the lead and the ego (a cut-in) is logged as a ``lead_cut_in`` event.
+- A vehicle that comes between the lead and the ego (a cut-in) is logged as a ``lead_cut_in`` event. If it
+  is still there ``DIVERT_AFTER_S`` later and its route would keep it on the lead's way, it turns off at the
+  next junction it can (``cut_in_diverted``), as a car in front of a confederate lead would eventually do:
+  otherwise one cut-in costs the rest of the drive its following task (seen on Krems: 400 s behind one
+  SCV that shared the lead's route).
 
 Its speed is only ever capped (SUMO's car following, right of way and lights still hold it back).
 """
@@ -38,6 +42,9 @@ YIELD_STATES = (
     "sw=m"  # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor
 )
 LEAD_FOLLOWER_GAP_FACTOR = 1.2  # the follow-up headway the lead leaves the ego: a cautious participant's
+DIVERT_AFTER_S = 5.0  # a vehicle between the lead and the ego this long is sent off the lead's way [s]
+DIVERT_AHEAD_M = 40.0  # ... at a junction at least this far ahead of it, room to pick its lane [m]
+DIVERT_RETRY_S = 5.0  # when no junction offers a way out yet, ask again after this long [s]
 
 
 class LeadVehicle:
@@ -53,6 +60,8 @@ class LeadVehicle:
         self._lead_s: float | None = None  # the lead's rear on the ego's route path [m]
         self._ego_leader: str | None = None
         self._yield_wait: tuple | None = None  # (last distance to the yield line, when the lead came near it)
+        self._between: tuple[str, float] | None = None  # (vehicle between the lead and the ego, since when)
+        self._divert_asked: dict[str, float] = {}  # vehicle -> when it was last asked to turn off
         sim.add_hook("driver", self.step)
 
     def step(self, sim) -> None:
@@ -62,6 +71,7 @@ class LeadVehicle:
             return
         self.gap_m = self._gap(sim, lead, ego)
         self._log_cut_in(sim)
+        self._divert_cut_in(sim)
         v_ego = float(w.speed_mps[ego])
         caps = []
         if self.wait_beyond_m > 0:
@@ -141,3 +151,24 @@ class LeadVehicle:
             sim.events.append(SumoEvent("lead_cut_in", leader, f"between the lead and the ego ({self.gap_m:.0f} m)",
                                         self.gap_m))  # fmt: skip
         self._ego_leader = leader
+
+    def _divert_cut_in(self, sim) -> None:
+        """Send a vehicle that has stayed between the lead and the ego off the lead's way."""
+        leader = self._ego_leader
+        if leader in (None, LEAD_ID) or not self.gap_m > 0:
+            self._between = None
+            return
+        t = sim.world.t_s
+        if self._between is None or self._between[0] != leader:
+            self._between = (leader, t)
+        asked = self._divert_asked.get(leader)
+        if t - self._between[1] < DIVERT_AFTER_S or (asked is not None and t - asked < DIVERT_RETRY_S):
+            return
+        self._divert_asked[leader] = t
+        keep_off = set(sim.bridge.route_ahead(LEAD_ID))
+        exit_edge = sim.bridge.divert(leader, keep_off, DIVERT_AHEAD_M)
+        if exit_edge is not None:
+            self._divert_asked[leader] = math.inf  # done: it leaves the lead's way at its next junction
+            sim.events.append(
+                SumoEvent("cut_in_diverted", leader, f"turns off onto {exit_edge}, off the lead's way")
+            )

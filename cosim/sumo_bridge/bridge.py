@@ -339,6 +339,67 @@ class SumoBridge:
             return False
         return True
 
+    def divert(
+        self, vid: str, keep_off: set[str], min_ahead_m: float, continue_m: float = 300.0
+    ) -> str | None:
+        """Send ``vid`` off the edges ``keep_off`` at the first junction at least ``min_ahead_m`` ahead where
+        one of its lanes leads onto another road (never a U-turn), then on along that road for about
+        ``continue_m`` (straight on where it can, still off ``keep_off``). Returns the edge it turns onto,
+        or None when it already leaves ``keep_off`` within that stretch or no junction offers a way out."""
+        veh, lane_api = self.sumo.vehicle, self.sumo.lane
+        try:
+            route, i = list(veh.getRoute(vid)), veh.getRouteIndex(vid)
+            lane, pos = veh.getLaneID(vid), veh.getLanePosition(vid)
+        except Exception:  # libsumo.TraCIException: gone meanwhile
+            return None
+        if i < 0 or not lane or lane.startswith(":"):
+            return None
+        ahead = lane_api.getLength(lane) - pos
+        for k in range(i, len(route)):
+            if k + 1 < len(route) and route[k + 1] not in keep_off:
+                return None  # its own route leaves ``keep_off`` at this junction
+            if k > i:
+                ahead += lane_api.getLength(f"{route[k]}_0")
+            if ahead < min_ahead_m:
+                continue
+            out = self._exits(route[k], keep_off | {route[k]})
+            if not out:
+                continue
+            new = [*route[i : k + 1], out[0]]
+            while sum(lane_api.getLength(f"{e}_0") for e in new[k - i + 1 :]) < continue_m:
+                more = self._exits(new[-1], keep_off | set(new), prefer="s")
+                if not more:
+                    break
+                new.append(more[0])
+            try:
+                veh.setRoute(vid, new)
+            except Exception:  # libsumo.TraCIException: SUMO refused the route
+                return None
+            return out[0]
+        return None
+
+    def _exits(self, edge: str, avoid: set[str], prefer: str = "rls") -> list[str]:
+        """Edges a passenger car can reach from ``edge`` at its end junction, outside ``avoid``, no U-turns,
+        ordered by the directions in ``prefer`` (r right, l left, s straight)."""
+        found: dict[str, int] = {}
+        for n in range(self.sumo.edge.getLaneNumber(edge)):
+            # link tuples: (toLane, hasPrio, isOpen, hasFoe, via, state, direction, length)
+            for link in self.sumo.lane.getLinks(f"{edge}_{n}"):
+                to, direction = link[0].rsplit("_", 1)[0], link[6].lower()
+                if to in avoid or direction in ("t", "invalid") or to.startswith(":"):
+                    continue
+                allowed = self.sumo.lane.getAllowed(link[0])
+                if allowed and "passenger" not in allowed:
+                    continue
+                rank = prefer.find(direction[0]) if direction[0] in prefer else len(prefer)
+                found[to] = min(found.get(to, rank), rank)
+        return sorted(found, key=lambda e: (found[e], e))
+
+    def route_ahead(self, vid: str) -> list[str]:
+        """The edges of the route SUMO holds for ``vid`` from the one it is on to the end."""
+        veh = self.sumo.vehicle
+        return list(veh.getRoute(vid)[max(veh.getRouteIndex(vid), 0) :])
+
     def edges_left(self, vid: str) -> int:
         """Edges of the route SUMO holds for ``vid`` from the one it is on (or has just left) to the end."""
         veh = self.sumo.vehicle

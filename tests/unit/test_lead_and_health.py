@@ -22,6 +22,8 @@ class FakeBridge:
         self.green_left_s = math.inf
         self.link = None  # (state, dist, direction)
         self.foes: list[tuple[str, float, float, float]] = []
+        self.diverted: list[tuple[str, set]] = []
+        self.exit_edge: str | None = "side"
 
     def cap_speed(self, vid, speed):
         assert vid == LEAD_ID
@@ -41,6 +43,14 @@ class FakeBridge:
 
     def yield_foes(self, vid, lookahead_m):
         return self.foes
+
+    def route_ahead(self, vid):
+        assert vid == LEAD_ID
+        return ["a", "b", "c"]
+
+    def divert(self, vid, keep_off, min_ahead_m):
+        self.diverted.append((vid, keep_off))
+        return self.exit_edge
 
 
 def fake_sim(gap_m: float, ego_speed: float):
@@ -117,6 +127,30 @@ def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
         and [e.kind for e in sim.events] == ["lead_cut_in"]
         and sim.events[0].vehicle == "scv7"
     )
+
+
+def test_a_vehicle_that_stays_between_the_lead_and_the_ego_is_sent_off_the_leads_way():
+    sim = fake_sim(gap_m=20.0, ego_speed=8.0)
+    lead = LeadVehicle(sim, wait_beyond_m=40.0)
+    sim.ego = SimpleNamespace(s_front_m=None, percept=SimpleNamespace(leader_present=True, leader_id=LEAD_ID))
+    lead.step(sim)
+    sim.ego.percept = SimpleNamespace(leader_present=True, leader_id="scv7")
+    sim.bridge.exit_edge = None  # no junction offers a way out yet
+    for k in range(1, 100):  # 9.9 s with scv7 between them
+        sim.world.t_s = k * 0.1
+        lead.step(sim)
+    # asked first after DIVERT_AFTER_S (5 s), again DIVERT_RETRY_S later, never every step
+    assert [v for v, _ in sim.bridge.diverted] == ["scv7"] and sim.bridge.diverted[0][1] == {"a", "b", "c"}
+    sim.bridge.exit_edge = "side"
+    for k in range(100, 200):
+        sim.world.t_s = k * 0.1
+        lead.step(sim)
+    assert len(sim.bridge.diverted) == 2  # the second ask turned it off; it is not asked again
+    assert [e.kind for e in sim.events] == ["lead_cut_in", "cut_in_diverted"]
+    # the lead back as the ego's leader: nothing more happens
+    sim.ego.percept = SimpleNamespace(leader_present=True, leader_id=LEAD_ID)
+    lead.step(sim)
+    assert len(sim.bridge.diverted) == 2
 
 
 def _health_sim(lead: bool = True):
