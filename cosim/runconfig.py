@@ -7,11 +7,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
+from cosim.adas.config import AdasConfig
 from cosim.config import from_dict, read_yaml
 from cosim.driver import DriverConfig
 from cosim.ego_mujoco import CarParams
 from cosim.errors import ConfigError
-from cosim.phases.adas import AdasConfig
 from cosim.scenario import ScenarioConfig
 from cosim.vanet import VanetParams
 

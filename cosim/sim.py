@@ -22,9 +22,9 @@ from cosim.health import DriveHealth
 from cosim.log import McapLog
 from cosim.runconfig import RunConfig
 from cosim.scenario import Scenario, build_scenario
-from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoBridge, SumoEvent
+from cosim.sumo_bridge.bridge import SumoBridge
 from cosim.sumo_bridge.tools import sumo_version
-from cosim.world import World
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 PHASES = ("sumo", "vanet", "adas", "driver", "ego", "writeback", "log")
 EGO_START_M = 2.0  # the ego's rear starts this far from the start of its route [m]

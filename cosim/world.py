@@ -15,6 +15,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+# the vehicles cosim itself puts into SUMO, and their vTypes (the one place these names are spelled)
+EGO_ID = "ego"
+LEAD_ID = "lead"
+EGO_VTYPE = "ego_car"  # the scenario's routes define it (cosim.scenario.demand), never teleported
+LEAD_VTYPE = "lead_car"  # the lead vehicle of the following task (cosim.phases.lead)
+SCV_VTYPE = "scv"  # the SCVs cosim inserts itself (cosim.phases.traffic)
+
+
+@dataclass(frozen=True)
+class SumoEvent:
+    """A traffic event of one step (from SUMO, or decided by a phase), logged on ``/events``."""
+
+    kind: str  # teleport | collision | emergency_stop | ego_off_road | red_light_violation | ...
+    vehicle: str
+    detail: str = ""
+    value: float = float("nan")
+
+
 # SUMO vehicle signal bits (https://sumo.dlr.de/docs/TraCI/Vehicle_Signalling.html)
 SIGNAL_BLINKER_RIGHT = 1 << 0
 SIGNAL_BLINKER_LEFT = 1 << 1

@@ -4,7 +4,8 @@ Both are pure (no simulator handle), stateful per run (``update`` once per step)
 display transitions as ``AdasEvent`` for the log.
 """
 
-from cosim.adas.common import AdasEvent, BuildingIndex, VehicleState, along_heading_gap_m, time_gap_s
+from cosim.adas.common import AdasEvent, VehicleState, along_heading_gap_m, time_gap_s
+from cosim.adas.config import AdasConfig, System
 from cosim.adas.rear_stereo import RearStereoWarning, RearWarningOutput, RearWarningParams, StereoCameraParams
 from cosim.adas.v2v_timegap import (
     CamData,
@@ -16,13 +17,14 @@ from cosim.adas.v2v_timegap import (
 )
 
 __all__ = [
+    "AdasConfig",
     "AdasEvent",
-    "BuildingIndex",
     "CamData",
     "RearStereoWarning",
     "RearWarningOutput",
     "RearWarningParams",
     "StereoCameraParams",
+    "System",
     "TimeGapOutput",
     "TimeGapParams",
     "V2VTimeGapWarning",

@@ -8,11 +8,7 @@ coordinates [m], its heading is SUMO's compass angle (degrees clockwise from nor
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
 from dataclasses import dataclass
-
-import shapely
-from shapely import STRtree
 
 from cosim.world import World
 
@@ -151,25 +147,3 @@ class EventRecorder:
         out = self.events[-self._undrained :]
         self._undrained = 0
         return out
-
-
-class BuildingIndex:
-    """Building footprints (2-D shapely polygons) in an STRtree, for line-of-sight tests.
-
-    Build it once per scenario and share it; queries are read-only.
-    """
-
-    def __init__(self, polygons: Iterable[shapely.Geometry] = ()) -> None:
-        self.polygons: tuple[shapely.Geometry, ...] = tuple(polygons)
-        self._tree = STRtree(list(self.polygons)) if self.polygons else None
-
-    def __len__(self) -> int:
-        return len(self.polygons)
-
-    def line_of_sight(self, x0_m: float, y0_m: float, x1_m: float, y1_m: float) -> bool:
-        """True when the 2-D segment (x0, y0)-(x1, y1) touches no building polygon."""
-        if self._tree is None:
-            return True
-        seg = shapely.LineString([(x0_m, y0_m), (x1_m, y1_m)])
-        hits = self._tree.query(seg, predicate="intersects")
-        return hits.size == 0

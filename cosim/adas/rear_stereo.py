@@ -36,7 +36,8 @@ from typing import Literal
 import numpy as np
 import shapely
 
-from cosim.adas.common import BuildingIndex, EventRecorder, VehicleState, heading_unit, left_unit
+from cosim.adas.common import EventRecorder, VehicleState, heading_unit, left_unit
+from cosim.buildings import Buildings
 
 MeasureStatus = Literal["ok", "behind_camera", "outside_fov", "too_close", "out_of_range", "no_disparity"]
 PerceiveStatus = Literal["perceived", "display_off", "outside_view_angle", "too_far", "occluded"]
@@ -172,12 +173,12 @@ class RearStereoWarning:
     def __init__(
         self,
         params: RearWarningParams | None = None,
-        buildings: BuildingIndex | Iterable[shapely.Geometry] = (),
+        buildings: Buildings | Iterable[shapely.Geometry] = (),
         *,
         rng: np.random.Generator,
     ) -> None:
         self.params = params if params is not None else RearWarningParams()
-        self.buildings = buildings if isinstance(buildings, BuildingIndex) else BuildingIndex(buildings)
+        self.buildings = buildings if isinstance(buildings, Buildings) else Buildings(list(buildings))
         self.rng = rng
         self.recorder = EventRecorder("A")
         self._lit = False

@@ -16,7 +16,7 @@ import numpy as np
 from cosim.driver.base import Controls, Driver, PathGeometry, Percept, path_errors
 from cosim.driver.keyboard import KeyboardDriver, KeyboardMapper, KeyboardParams
 from cosim.driver.profiles import PROFILES, DriverProfile, profile_by_name
-from cosim.driver.scripted import CarParams, ControllerParams, DriverDebug, ScriptedDriver
+from cosim.driver.scripted import ControllerParams, DriverDebug, PedalModel, ScriptedDriver
 from cosim.driver.wheel import PedalParams, WheelDriver, WheelMapper, WheelParams
 
 
@@ -27,7 +27,9 @@ class DriverConfig:
     kind: Literal["scripted", "keyboard", "wheel"] = "scripted"
     profile: str = "daily_commuter"  # a name from PROFILES (scripted only)
     profile_overrides: dict[str, float] = field(default_factory=dict)  # e.g. {reaction_time_s: 1.2}
-    car: CarParams = field(default_factory=CarParams)  # the scripted driver's pedal model; match the ego car
+    car: PedalModel = field(
+        default_factory=PedalModel
+    )  # the scripted driver's pedal model; match the ego car
     control: ControllerParams = field(default_factory=ControllerParams)
     keyboard: KeyboardParams = field(default_factory=KeyboardParams)
     wheel: WheelParams = field(default_factory=WheelParams)
@@ -52,7 +54,7 @@ def make_driver(
     rng: np.random.Generator,
     max_steer_rad: float,
     wheelbase_m: float,
-    car: CarParams | None = None,
+    car: PedalModel | None = None,
 ) -> Driver:
     """Build the configured driver. ``car`` (e.g. derived from the ego model) overrides ``cfg.car``."""
     if cfg.kind == "scripted":
@@ -66,7 +68,7 @@ def make_driver(
 
 __all__ = [
     "PROFILES",
-    "CarParams",
+    "PedalModel",
     "ControllerParams",
     "Controls",
     "Driver",

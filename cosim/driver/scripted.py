@@ -66,7 +66,7 @@ _LEVEL_CODES = {"none": 0, "advisory": 1, "warning": 2}
 
 
 @dataclass(frozen=True)
-class CarParams:
+class PedalModel:
     """The car as the driver's pedal feed-forward assumes it (the real physics are cosim.ego_mujoco's)."""
 
     mass_kg: float = 1400.0
@@ -87,11 +87,11 @@ class CarParams:
         ):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"CarParams.{name} must be a finite number > 0, got {v!r}")
+                raise ValueError(f"PedalModel.{name} must be a finite number > 0, got {v!r}")
         for name in ("rolling_resistance", "drag_area_m2"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"CarParams.{name} must be a finite number >= 0, got {v!r}")
+                raise ValueError(f"PedalModel.{name} must be a finite number >= 0, got {v!r}")
 
     def drive_accel_max(self, speed_mps: float) -> float:
         """[m/s^2] acceleration at full throttle (traction-limited at low speed, power-limited above)."""
@@ -206,7 +206,7 @@ class ScriptedDriver(Driver):
         max_steer_rad: float,
         wheelbase_m: float,
         *,
-        car: CarParams | None = None,
+        car: PedalModel | None = None,
         control: ControllerParams | None = None,
     ) -> None:
         if not (math.isfinite(max_steer_rad) and 0.0 < max_steer_rad < math.pi / 2):
@@ -218,7 +218,7 @@ class ScriptedDriver(Driver):
         self.profile = profile
         self.max_steer_rad = float(max_steer_rad)
         self.wheelbase_m = float(wheelbase_m)
-        self.car = car or CarParams()
+        self.car = car or PedalModel()
         self.control = control or ControllerParams()
         self._rng = rng
         self.reset()

@@ -14,7 +14,7 @@ import numpy as np
 
 from cosim.log.map_scene import map_scene_update, signal_lamps
 from cosim.log.schemas import TOPIC_SCHEMAS
-from cosim.sumo_bridge.bridge import EGO_ID
+from cosim.world import EGO_ID
 
 
 def _r(a: np.ndarray, nd: int) -> list:

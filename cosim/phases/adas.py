@@ -10,33 +10,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
 from cosim.adas import RearStereoWarning, V2VTimeGapWarning, VehicleState
 from cosim.adas.common import time_gap_s
-from cosim.adas.rear_stereo import RearWarningParams
-from cosim.adas.v2v_timegap import CamData, TimeGapParams
+from cosim.adas.config import AdasConfig, System
+from cosim.adas.v2v_timegap import CamData
 from cosim.scenario.buildings import load_buildings
-from cosim.sumo_bridge.bridge import EGO_ID
-from cosim.vanet.obu import LeaderCriteria
+from cosim.seeds import stream
+from cosim.world import EGO_ID
 
-System = Literal["none", "A", "B"]
-
-
-@dataclass(frozen=True)
-class AdasConfig:
-    system: System = "none"  # what the driver sees when no experiment protocol decides
-    rear: RearWarningParams = field(default_factory=RearWarningParams)  # system A
-    v2v: TimeGapParams = field(default_factory=TimeGapParams)  # system B
-    # how system B's OBU picks the vehicle to show the gap to: the paper's criteria a-d and g; e (it
-    # accelerates less) and f (gap below 2 s) decide a warning, not who the leader is
-    leader_criteria: LeaderCriteria = field(
-        default_factory=lambda: LeaderCriteria(accel_smaller=False, time_gap=False)
-    )
-    leader_search_m: float = 150.0  # ground-truth leader search distance [m]
+__all__ = ["AdasConfig", "AdasPhase", "System"]  # AdasConfig lives in cosim.adas.config
 
 
 class AdasPhase:
@@ -46,9 +31,7 @@ class AdasPhase:
         self.active: System = config.system
         self.phase_name = ""
         buildings, _ = load_buildings(sim.scenario.buildings_file)
-        self.system_a = RearStereoWarning(
-            config.rear, buildings, rng=np.random.default_rng([sim.config.seed, 31])
-        )
+        self.system_a = RearStereoWarning(config.rear, buildings, rng=stream(sim.config.seed, "system_a"))
         self.system_b = V2VTimeGapWarning(config.v2v)
         self._b_station: int | None = None
         self._b_seq: int | None = None  # record number of the leader CAM decoded last, and that CAM

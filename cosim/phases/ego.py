@@ -16,7 +16,8 @@ from cosim import frames
 from cosim.driver import Controls, Percept, make_driver
 from cosim.driver.gap_acceptance import arrival_time_s, movement_of
 from cosim.driver.route import RoutePath
-from cosim.sumo_bridge.bridge import EGO_ID, SumoEvent
+from cosim.seeds import stream
+from cosim.world import EGO_ID, SumoEvent
 
 PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
@@ -69,7 +70,7 @@ class EgoController:
         self.car = EgoCar(cfg.car, timestep_s=sim.config.timing.physics_timestep_s)
         self.path = RoutePath.from_network(sim.net, sim.ego_route)
         p = cfg.car
-        self.driver = make_driver(cfg.driver, np.random.default_rng([sim.config.seed, 11, cfg.driver_seed]),
+        self.driver = make_driver(cfg.driver, stream(sim.config.seed, "driver", cfg.driver_seed),
                                   math.radians(p.max_steer_deg), p.wheelbase_m)  # fmt: skip
         self.origin: tuple[float, float] | None = None
         self.s_front_m: float | None = None  # the front bumper's arc position on the route path [m]

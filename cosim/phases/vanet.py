@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from cosim.log.columns import json_columns
 from cosim.scenario.buildings import load_buildings
+from cosim.seeds import stream
 from cosim.vanet import VanetLayer, VanetParams
 
 _DECIMALS = {
@@ -24,7 +23,7 @@ _DECIMALS = {
 class VanetPhase:
     def __init__(self, sim, params: VanetParams):
         buildings, _ = load_buildings(sim.scenario.buildings_file)
-        self.layer = VanetLayer(params, buildings, np.random.default_rng([sim.config.seed, 23]))
+        self.layer = VanetLayer(params, buildings, stream(sim.config.seed, "vanet"))
         self.sim = sim
         sim.add_hook("vanet", self.step)
 

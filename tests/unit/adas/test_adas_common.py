@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 import shapely
 
-from cosim.adas import BuildingIndex, VehicleState, along_heading_gap_m
+from cosim.adas import VehicleState, along_heading_gap_m
 from cosim.adas.common import EventRecorder, chord_gap_m, heading_unit, left_unit
+from cosim.buildings import Buildings
 from cosim.world import World
 
 
@@ -55,15 +56,15 @@ def test_from_world():
         VehicleState.from_world(w, 3)
 
 
-def test_building_index_line_of_sight():
-    idx = BuildingIndex([shapely.box(0, 0, 10, 10), shapely.box(20, 0, 30, 10)])
+def test_buildings_line_of_sight():
+    idx = Buildings([shapely.box(0, 0, 10, 10), shapely.box(20, 0, 30, 10)])
     assert len(idx) == 2
     assert idx.line_of_sight(-5, 12, 35, 12)  # passes above both
     assert not idx.line_of_sight(-5, 5, 15, 5)  # through the first
     assert not idx.line_of_sight(15, -5, 25, 5)  # clips the second's corner
     assert idx.line_of_sight(12, -5, 18, 15)  # between them
     assert not idx.line_of_sight(-5, 10, 35, 10)  # grazing a wall counts as blocked
-    assert BuildingIndex().line_of_sight(0, 0, 1, 1)
+    assert Buildings().line_of_sight(0, 0, 1, 1)
 
 
 def test_vehicle_state_validation():

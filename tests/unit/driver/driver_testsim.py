@@ -1,7 +1,7 @@
 """A tiny closed-loop world for the driver tests: a point-mass + kinematic-bicycle car on a polyline route.
 
 Not the real ego physics (that is cosim.ego_mujoco): just enough to close the loop. The car's pedal response
-matches the driver's CarParams feed-forward except for an optional model mismatch, so the PI loop is tested.
+matches the driver's PedalModel feed-forward except for an optional model mismatch, so the PI loop is tested.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cosim.driver.base import Controls, Driver, Percept, path_errors
-from cosim.driver.scripted import CarParams
+from cosim.driver.scripted import PedalModel
 
 CAR_LENGTH_M = 4.5
 WHEELBASE_M = 2.7
@@ -69,7 +69,7 @@ class Car:
     y: float
     yaw: float
     v: float
-    params: CarParams = field(default_factory=CarParams)
+    params: PedalModel = field(default_factory=PedalModel)
     drive_gain: float = 1.0  # model mismatch: real drive force / what the driver assumes
     brake_gain: float = 1.0  # model mismatch: real brake force / what the driver assumes
     a: float = 0.0
