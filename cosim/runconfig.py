@@ -27,7 +27,6 @@ class TimingConfig:
 
     sumo_step_s: float = 0.1  # base step [s]
     physics_timestep_s: float = 0.002  # MuJoCo timestep; sumo_step_s must be a multiple (>= 500 Hz) [s]
-    cam_check_period_s: float = 0.1  # ETSI: CAM conditions checked at least every 100 ms [s]
 
     def __post_init__(self):
         if not 0.001 <= self.sumo_step_s <= 1.0:
@@ -37,19 +36,9 @@ class TimingConfig:
                              f"({self.physics_timestep_s})")  # fmt: skip
         if self.physics_timestep_s > 0.002 + 1e-12:
             raise ValueError("physics_timestep_s must be <= 0.002 s (MuJoCo car at >= 500 Hz)")
-        if not _is_multiple(self.cam_check_period_s, self.sumo_step_s):
-            raise ValueError(f"cam_check_period_s ({self.cam_check_period_s}) must be an integer multiple of "
-                             f"sumo_step_s ({self.sumo_step_s})")  # fmt: skip
-        if self.cam_check_period_s > 0.1 + 1e-9:
-            raise ValueError("cam_check_period_s must be <= 0.1 s (ETSI EN 302 637-2)")
-
-    @property
-    def physics_substeps(self) -> int:
-        return round(self.sumo_step_s / self.physics_timestep_s)
-
-    @property
-    def cam_check_steps(self) -> int:
-        return round(self.cam_check_period_s / self.sumo_step_s)
+        if self.sumo_step_s > 0.1 + 1e-9:  # the VANET layer checks the CAM conditions once per base step
+            raise ValueError("sumo_step_s must be <= 0.1 s: CAM conditions are checked once per step, and ETSI "
+                             "EN 302 637-2 wants them checked at least every 100 ms")  # fmt: skip
 
 
 @dataclass(frozen=True)

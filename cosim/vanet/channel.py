@@ -69,11 +69,6 @@ def dbm_to_mw(dbm):
     return np.power(10.0, np.asarray(dbm, dtype=np.float64) / 10.0)
 
 
-def mw_to_dbm(mw):
-    with np.errstate(divide="ignore"):
-        return 10.0 * np.log10(np.asarray(mw, dtype=np.float64))
-
-
 @dataclass(frozen=True)
 class ChannelParams:
     """Radio link budget, path loss, shadowing and the receiver (``receiver``: cosim.vanet.receiver)."""

@@ -293,12 +293,3 @@ def loss_labels(lp: LinkPowers, ti: np.ndarray, ri: np.ndarray) -> np.ndarray:
     log-normal shadowing) alone would have reached it, BELOW_SENSITIVITY otherwise."""
     ref = lp.above if lp.above is not None else lp.in_range
     return np.where(ref[ti, ri], SHADOWED, BELOW_SENSITIVITY).astype(np.uint8)
-
-
-def report_links(
-    in_range: np.ndarray, power: np.ndarray, sensitivity_dbm: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Reported links (T, M) -> (tx, rx) index arrays sorted by (tx, rx): in range by path loss, or above the
-    sensitivity (a two-ray null or a shadowed link is reported as what it is)."""
-    rep = in_range | (power >= np.float32(sensitivity_dbm))
-    return np.nonzero(rep)

@@ -47,9 +47,6 @@ class MeshData:
     def empty(self) -> bool:
         return len(self.faces) == 0
 
-    def translated(self, dx: float, dy: float, dz: float = 0.0) -> MeshData:
-        return MeshData(self.vertices + (dx, dy, dz), self.faces, self.texcoords)
-
 
 def merge(meshes: Iterable[MeshData]) -> MeshData:
     """One mesh from many (texcoords kept only if every part has them)."""

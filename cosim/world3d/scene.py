@@ -214,10 +214,6 @@ class Scene:
         mujoco.mj_camlight(m, self.data)
 
     # -- frames ------------------------------------------------------------------------------------------------
-    def to_scene(self, x_m, y_m):
-        """Network coordinates [m] -> scene coordinates [m] (scalars or arrays)."""
-        return np.asarray(x_m) - self.origin_xy[0], np.asarray(y_m) - self.origin_xy[1]
-
     def _hide(self, geoms) -> None:
         self.model.geom_group[np.asarray(list(geoms), dtype=np.int64)] = HIDDEN_GROUP
 
