@@ -25,8 +25,10 @@ TLS_NEAR_M = 150.0  # a light nearer than this is looked up every step, farther 
 TLS_REFRESH_S = 1.0
 YIELD_LOOK_M = 80.0  # the gap at a junction where the ego must yield is judged from this close on [m]
 FOE_RADIUS_M = 200.0  # priority vehicles farther from the conflict than this do not count (paper IV.B)
-# a priority vehicle that has stood this long is waiting itself (queued, yielding, blocked): a driver who
-# sees it stand goes, as SUMO's junction model (which counts approaching foes only) does
+# a priority vehicle that has stood this long behind another car or at a closed link is waiting itself
+# (queued, yielding, blocked): a driver who sees it stand goes, as SUMO's junction model (which counts
+# approaching foes only) does. One first in line at an open link is not: a queue released by its green
+# light has stood for a whole red (an ego turning left at a permissive green hit such a right-turner)
 FOE_WAITING_S = 3.0
 # SUMO is given the ego's route this far ahead, renewed at half of it: enough for its next light (read
 # within 300 m) and right of way. It matches every pose against each edge of the route it holds (the ones
@@ -51,9 +53,9 @@ def priority_gap_s(sim, vid: str, line_dist_m: float) -> float:
     (SUMO's right of way; inf: none within FOE_RADIUS_M)."""
     w = sim.world
     gap = math.inf
-    for foe, _, foe_dist, standing_s in sim.bridge.yield_foes(vid, line_dist_m + 5.0):
+    for foe, _, foe_dist, standing_s, held_back in sim.bridge.yield_foes(vid, line_dist_m + 5.0):
         slot = w.slot_of.get(foe)
-        if slot is None or foe_dist > FOE_RADIUS_M or standing_s >= FOE_WAITING_S:
+        if slot is None or foe_dist > FOE_RADIUS_M or (standing_s >= FOE_WAITING_S and held_back):
             continue
         gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
     return gap

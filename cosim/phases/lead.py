@@ -29,7 +29,7 @@ import math
 
 from cosim.driver.gap_acceptance import critical_gap_s, follow_up_s, movement_of
 from cosim.phases.ego import priority_gap_s
-from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoEvent
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent
 
 CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this time [s]
 YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
@@ -38,9 +38,10 @@ LIGHT_DECIDE_M = 70.0  # the lead decides whether to stop for the ego's sake thi
 LIGHT_MARGIN_S = 1.5  # the ego must reach the stop line this long before the green ends [s]
 STOP_DECEL_MPS2 = 2.0  # the lead's planned deceleration when it stops for the ego at a green [m/s^2]
 STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
-YIELD_STATES = (
-    "sw=m"  # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor
-)
+# SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor, and a permissive
+# green (g: a left turn through oncoming traffic), where the lead going alone let the oncoming stream in
+# between it and the ego
+YIELD_STATES = "sw=mg"
 LEAD_FOLLOWER_GAP_FACTOR = 1.2  # the follow-up headway the lead leaves the ego: a cautious participant's
 DIVERT_AFTER_S = 5.0  # a vehicle between the lead and the ego this long is sent off the lead's way [s]
 DIVERT_AHEAD_M = 40.0  # ... at a junction at least this far ahead of it, room to pick its lane [m]
@@ -62,7 +63,6 @@ class LeadVehicle:
         self._yield_wait: tuple | None = None  # (last distance to the yield line, when the lead came near it)
         self._between: tuple[str, float] | None = None  # (vehicle between the lead and the ego, since when)
         self._divert_asked: dict[str, float] = {}  # vehicle -> when it was last asked to turn off
-        sim.add_hook("driver", self.step)
 
     def step(self, sim) -> None:
         w = sim.world

@@ -25,6 +25,7 @@ LEAD_VTYPE = "lead_car"  # the lead vehicle of the following task (cosim.phases.
 # the lead drives a little below the limit, as a leader who wants to be followed does (an SCV's speed
 # factor is drawn from 0.8-1.2: a fast one would leave the participant behind at every stretch)
 LEAD_SPEED_FACTOR = 0.95
+HELD_BACK_GAP_M = 10.0  # a standing car this close behind another is queued, not about to go [m]
 OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
 MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
 # A car at rest in MuJoCo still creeps by ~1e-5 m. A pose a hair behind the last one makes SUMO measure the
@@ -458,14 +459,30 @@ class SumoBridge:
     def vehicle_ids(self) -> list[str]:
         return list(self.sumo.vehicle.getIDList())
 
-    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float, float]]:
-        """(foe id, the ego's distance to the conflict, the foe's [m], how long the foe has been standing
-        [s]) for the vehicles ``vid`` must yield to at the junctions within ``lookahead_m`` on its route
-        (SUMO's own right-of-way model)."""
+    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float, float, bool]]:
+        """(foe id, the ego's distance to the conflict, the foe's [m], how long the foe has been standing [s],
+        whether something holds the foe back: a car right ahead of it or a closed link) for the vehicles
+        ``vid`` must yield to at the junctions within ``lookahead_m`` on its route (SUMO's right of way)."""
         veh = self.sumo.vehicle
         foes = veh.getJunctionFoes(vid, lookahead_m)
         # tuples: (foeId, egoDist, foeDist, egoExitDist, foeExitDist, egoLane, foeLane, egoResponse, foeResponse)
-        return [(f[0], f[1], f[2], veh.getWaitingTime(f[0])) for f in foes if f[7]]
+        out = []
+        for f in foes:
+            if not f[7]:
+                continue
+            standing = veh.getWaitingTime(f[0])
+            out.append((f[0], f[1], f[2], standing, standing > 0 and self._held_back(f[0])))
+        return out
+
+    def _held_back(self, vid: str) -> bool:
+        """A standing vehicle that cannot go now: a car within HELD_BACK_GAP_M ahead of it, or its next link
+        closed (red, or yielding itself). One standing first in line at an open link may start any moment."""
+        veh = self.sumo.vehicle
+        ahead = veh.getLeader(vid, HELD_BACK_GAP_M)
+        if ahead and ahead[0]:
+            return True
+        links = veh.getNextLinks(vid)  # (lane, hasPrio, isOpen, hasFoe, via, state, direction, length)
+        return bool(links) and not links[0][2]
 
     def next_link(self, vid: str) -> tuple[str, float, str] | None:
         """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None

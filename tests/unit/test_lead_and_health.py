@@ -21,7 +21,7 @@ class FakeBridge:
         self.tls = None  # (id, link, dist, state)
         self.green_left_s = math.inf
         self.link = None  # (state, dist, direction)
-        self.foes: list[tuple[str, float, float, float]] = []
+        self.foes: list[tuple[str, float, float, float, bool]] = []
         self.diverted: list[tuple[str, set]] = []
         self.exit_edge: str | None = "side"
 
@@ -106,11 +106,11 @@ def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_su
     sim3.bridge.link = ("m", 10.0, "s")
     sim3.world.add("foe")
     sim3.world.speed_mps[sim3.world.slot_of["foe"]] = 10.0
-    sim3.bridge.foes = [("foe", 10.0, 80.0, 0.0)]  # arrives in 8 s: < t_c + t_f = 6.5 + 4.8 s
+    sim3.bridge.foes = [("foe", 10.0, 80.0, 0.0, False)]  # arrives in 8 s: < t_c + t_f = 6.5 + 4.8 s
     lead3 = LeadVehicle(sim3, wait_beyond_m=40.0)
     lead3.step(sim3)
     assert lead3.waiting
-    sim3.bridge.foes = [("foe", 10.0, 150.0, 0.0)]  # 15 s: room for both
+    sim3.bridge.foes = [("foe", 10.0, 150.0, 0.0, False)]  # 15 s: room for both
     lead3.step(sim3)
     assert not lead3.waiting
 
@@ -217,3 +217,20 @@ def test_health_says_so_when_the_ego_never_drove():
     health.step(sim)
     rep = health.report()
     assert rep["status"] == "degraded" and rep["problems"] == ["the ego never drove in this window"]
+
+
+def test_a_standing_foe_counts_unless_something_holds_it_back():
+    from cosim.phases.ego import priority_gap_s
+
+    sim = fake_sim(gap_m=20.0, ego_speed=0.0)
+    foe = sim.world.add("foe", is_ego=False)
+    sim.world.speed_mps[foe] = 0.0
+    # first in line at an open link after a whole red: it may start now, 10 m from the conflict
+    sim.bridge.foes = [("foe", 5.0, 10.0, 40.0, False)]
+    assert priority_gap_s(sim, LEAD_ID, 5.0) < 4.0
+    # queued behind another car (or at a closed link): waiting itself, it does not count
+    sim.bridge.foes = [("foe", 5.0, 10.0, 40.0, True)]
+    assert priority_gap_s(sim, LEAD_ID, 5.0) == math.inf
+    # held back but only just stopped: still counts (it may be rolling up to its queue)
+    sim.bridge.foes = [("foe", 5.0, 10.0, 1.0, True)]
+    assert priority_gap_s(sim, LEAD_ID, 5.0) < 4.0
