@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID, SumoEvent
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent
 
 STALL_S = 90.0  # a standstill outside red lights longer than this (a light cycle) is a stall [s]
 MAX_STANDSTILL_S = 120.0  # a longer standstill degrades the drive [s]
@@ -57,7 +57,6 @@ class DriveHealth:
         self.ego_present_at_s: float | None = None
         self._still_since: float | None = None
         self._stall_logged = False
-        sim.add_hook("writeback", self.step)
 
     def step(self, sim) -> None:
         w = sim.world

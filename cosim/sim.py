@@ -1,8 +1,11 @@
 """The orchestrator: owns simulated time (an integer step counter) and the fixed phase order.
 
-One step (ARCHITECTURE.md): sumo -> vanet -> adas -> driver -> ego -> writeback -> log. Each phase is a
-list of hooks ``fn(sim)`` that packages plug into with ``Simulation.add_hook(phase, fn)``; every hook of a
-step reads the same snapshot (``sim.world``), so vehicle order never matters.
+One step (ARCHITECTURE.md): sumo -> vanet -> adas -> driver -> ego -> writeback -> log. What runs when is
+the schedule that ``Simulation._build_schedule`` writes out, top to bottom: a list of (phase, callable).
+Every callable of a step reads the same snapshot (``sim.world``), so vehicle order never matters; the
+phases' results of the step are the fields of ``sim.outputs`` (a frozen ``cosim.outputs.StepOutputs``,
+complete before the log phase). A study can add its own callable ``fn(sim)`` to a phase with
+``Simulation.add_hook(phase, fn)``: it runs after that phase's scheduled work.
 """
 
 from __future__ import annotations
@@ -20,8 +23,10 @@ import cosim
 from cosim.config import to_dict
 from cosim.health import DriveHealth
 from cosim.log import McapLog
+from cosim.outputs import StepBuffer, StepOutputs
 from cosim.runconfig import RunConfig
 from cosim.scenario import Scenario, build_scenario
+from cosim.seeds import stream
 from cosim.sumo_bridge.bridge import SumoBridge
 from cosim.sumo_bridge.tools import sumo_version
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
@@ -83,10 +88,10 @@ class Simulation:
         self.step_s = config.timing.sumo_step_s
         self.steps_total = round(config.duration_s / self.step_s)
         self.world = World(capacity=1024)
-        self.rng = np.random.default_rng(config.seed)
-        self.hooks: dict[str, list[Callable[[Simulation], None]]] = {p: [] for p in PHASES}
-        self.events: list[SumoEvent] = []  # this step's events (hooks may append)
-        self.outputs: dict[str, object] = {}  # per-step results of the phases, by phase name
+        self.schedule: list[tuple[str, Callable[[Simulation], None]]] = []  # _build_schedule
+        self.events: list[SumoEvent] = []  # this step's events (phases may append)
+        self.outputs = StepOutputs()  # the phases' results of the last step
+        self.current = StepBuffer()  # ... while the step runs (frozen into outputs before the log phase)
         self.out_dir = Path(out_dir) if out_dir else None
         self.mcap: McapLog | None = None
         self.bridge: SumoBridge | None = None
@@ -100,7 +105,9 @@ class Simulation:
         self.traffic = None  # TrafficAroundEgo when the scenario's traffic is generated around the ego
         self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
         self.health: DriveHealth | None = None
+        self.recorder = None  # the log phase (cosim.log.recorder) when there is a log
         self._start_guard_until: float | None = None
+        self._placed = False  # the ego (and the lead) are placed on the route
         self.closed = False
         try:
             self.bridge = SumoBridge(self.scenario.sumocfg, seed=config.seed, step_s=self.step_s, gui=gui,
@@ -111,7 +118,8 @@ class Simulation:
             if config.vanet is not None:
                 from cosim.phases.vanet import VanetPhase
 
-                self.vanet = VanetPhase(self, config.vanet)
+                self.vanet = VanetPhase(config.vanet, self.buildings, stream(config.seed, "vanet"),
+                                        log=self.mcap is not None)  # fmt: skip
             if config.ego.enabled:
                 self._setup_ego()
                 if config.ego.physics == "mujoco":
@@ -124,16 +132,18 @@ class Simulation:
                 if config.ego.lead_vehicle:
                     self.lead = LeadVehicle(self, config.ego.lead_waits_beyond_m)
 
-                self.adas = AdasPhase(self, config.adas)
+                self.adas = AdasPhase(config.adas, self.buildings, stream(config.seed, "system_a"), self.bridge,
+                                      self.vanet)  # fmt: skip
                 if config.scenario.demand.area == "around_ego":
                     from cosim.phases.traffic import TrafficAroundEgo
 
                     self.traffic = TrafficAroundEgo(self, config.scenario.demand)
             self.health = DriveHealth(self)  # after the ego's phases: it reads what they decided
-            from cosim.log.recorder import attach_recorder
-
             if self.mcap is not None:
-                attach_recorder(self)
+                from cosim.log.recorder import Recorder
+
+                self.recorder = Recorder(self)
+            self.schedule = self._build_schedule()
         except BaseException:
             self.close()
             raise
@@ -147,6 +157,14 @@ class Simulation:
 
             self._net = sumolib.net.readNet(str(self.scenario.net_file), withInternal=True)
         return self._net
+
+    @cached_property
+    def buildings(self):
+        """The scenario's building footprints, read and indexed once for the radio and system A."""
+        from cosim.buildings import Buildings
+        from cosim.scenario.buildings import load_buildings
+
+        return Buildings(load_buildings(self.scenario.buildings_file)[0])
 
     @cached_property
     def drivable_edges(self) -> list:
@@ -173,13 +191,11 @@ class Simulation:
             from cosim.phases.route import EgoRoute
 
             self.route = EgoRoute(self)
-        if ego.depart_s > 0:
-            self.add_hook("sumo", self._place_ego_when_due)
-        else:
+        if ego.depart_s == 0:
             self._place_ego()
 
     def _place_ego(self) -> None:
-        self.add_hook("sumo", self._clear_start)
+        self._placed = True
         ego = self.config.ego
         front = ego.car.length_m + EGO_START_M
         if ego.lead_vehicle:
@@ -187,7 +203,15 @@ class Simulation:
         self.bridge.add_ego(self.ego_route, controlled=ego.physics == "mujoco", length_m=ego.car.length_m,
                             width_m=ego.car.width_m, front_m=front)  # fmt: skip
 
-    def _clear_start(self, sim) -> None:
+    def _start(self, sim) -> None:
+        """Places the ego (and the lead) when ``depart_s`` is due; from the next step on, keeps their start
+        clear (``_clear_start``) for START_GUARD_S."""
+        if self._placed:
+            self._clear_start()
+        elif self.world.t_s + self.step_s >= self.config.ego.depart_s - 1e-9:
+            self._place_ego()
+
+    def _clear_start(self) -> None:
         """For the first START_GUARD_S after the ego (and the lead) are placed: take out the vehicles SUMO
         inserts between them or onto the ego (an initial vehicle placed in their span of road), and at the
         first step those still waiting to be inserted on their edges, so the following task starts as
@@ -200,7 +224,7 @@ class Simulation:
         if first:
             self._start_guard_until = w.t_s + START_GUARD_S
         elif w.t_s > self._start_guard_until:
-            self.hooks["sumo"].remove(self._clear_start)
+            self._unschedule(self._start)
             return
         placed = [ego] if lead is None else [ego, lead]
         edge_codes = w.edge_code[placed]
@@ -222,16 +246,62 @@ class Simulation:
         for vid in doomed:
             self.bridge.remove_vehicle(vid)
 
-    def _place_ego_when_due(self, sim) -> None:
-        if self.world.t_s + self.step_s >= self.config.ego.depart_s - 1e-9:
-            self.hooks["sumo"].remove(self._place_ego_when_due)
-            self._place_ego()
+    # -- the schedule ----------------------------------------------------------------------------------------
+    def _build_schedule(self) -> list[tuple[str, Callable[[Simulation], None]]]:
+        """One step, in order. Each entry gives a phase object the narrow inputs it needs and keeps its
+        results in ``self.current`` (``self.outputs`` once the step is done)."""
+        s: list[tuple[str, Callable[[Simulation], None]]] = []
+        # sumo: SUMO has advanced and the snapshot is read (Simulation.step); then ...
+        if self.config.ego.enabled:
+            s.append(
+                ("sumo", self._start)
+            )  # ... the ego and the lead placed when due, their start kept clear
+        if self.ego is not None:
+            s.append(("sumo", self.ego.own_state))  # ... the ego's speed and acceleration are MuJoCo's
+        if self.vanet is not None:  # vanet: CAMs, medium access, the aether, the OBUs
+            s.append(("vanet", self._vanet_step))
+        if self.adas is not None:  # adas: systems A and B on what the ego could know
+            s.append(("adas", self._adas_step))
+        if self.ego is not None:  # driver: the ego's driver decides ...
+            s.append(("driver", self.ego.drive))
+        if self.lead is not None:  # ... and the lead car adapts to the ego
+            s.append(("driver", self.lead.step))
+        if self.ego is not None:
+            s.append(("ego", self.ego.integrate))  # ego: MuJoCo integrates the car over the SUMO step
+            s.append(("writeback", self.ego.write_back))  # writeback: the ego's pose into SUMO
+        if self.traffic is not None:
+            s.append(("writeback", self.traffic.step))  # SCVs generated and removed around the ego
+        if self.health is not None:
+            s.append(("writeback", self.health.step))  # the run's own health record
+        if self.recorder is not None:
+            s.append(("log", self.recorder))  # log: the step into the MCAP file
+        return s
 
-    # -- the loop --------------------------------------------------------------------------------------------
+    def _vanet_step(self, sim) -> None:
+        self.current.vanet, topics = self.vanet.step(self.world, self.step_s)
+        self.current.log.update(topics)
+
+    def _adas_step(self, sim) -> None:
+        out = self.adas.step(self.world)
+        if out is None:
+            return
+        self.current.adas_displays = out.displays
+        self.current.adas = out.record
+        if self.mcap is not None:
+            self.current.log["/adas/state"] = out.record
+            if out.events is not None:
+                self.current.log["/adas/events"] = out.events
+
     def add_hook(self, phase: str, fn: Callable[[Simulation], None]) -> None:
-        if phase not in self.hooks:
+        """Run ``fn(sim)`` every step in ``phase``, after the phase's scheduled work (and earlier hooks)."""
+        if phase not in PHASES:
             raise ValueError(f"unknown phase {phase!r} (phases: {', '.join(PHASES)})")
-        self.hooks[phase].append(fn)
+        last = max((i for i, (p, _) in enumerate(self.schedule) if PHASES.index(p) <= PHASES.index(phase)),
+                   default=-1)  # fmt: skip
+        self.schedule.insert(last + 1, (phase, fn))
+
+    def _unschedule(self, fn) -> None:
+        self.schedule = [(p, f) for p, f in self.schedule if f != fn]
 
     @property
     def t_s(self) -> float:
@@ -239,11 +309,14 @@ class Simulation:
 
     def step(self) -> World:
         """Advance one base step through every phase in order."""
-        self.outputs = {}
+        self.current = StepBuffer()
         self.events = self.bridge.step(self.world)
         for phase in PHASES:
-            for fn in tuple(self.hooks[phase]):  # a hook may remove itself (or add one) while they run
-                fn(self)
+            if phase == "log":
+                self.outputs = self.current.freeze()
+            for p, fn in tuple(self.schedule):  # an entry may remove itself (or add one) while they run
+                if p == phase:
+                    fn(self)
         for ev in self.events:
             if ev.kind == "teleport":
                 self.stats["teleports"] += 1

@@ -49,7 +49,7 @@ class Window:
         self.samples += int(speeds.size)
         lane = sim.bridge.sumo.lane
         self.halted_at_light.append(sum(lane.getLastStepHaltingNumber(ln) for ln in approach_lanes))
-        res = sim.outputs.get("vanet")  # the VANET phase's VanetStepResult of this step (radio on)
+        res = sim.outputs.vanet  # the VANET phase's VanetStepResult of this step (radio on)
         if res is not None:
             for topic, cols in res.columns().items():
                 if topic in self.vanet:

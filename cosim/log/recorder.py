@@ -55,7 +55,7 @@ class Recorder:
                 "lateral_offset_m": round(float(w.lateral_offset_m[ego]), 3),
                 "on_road": bool(sim.bridge.ego_on_road),
             }  # fmt: skip
-            msg.update(sim.outputs.get("ego_log", {}))
+            msg.update(sim.outputs.ego_log)
             if "/ego/state" not in self._channels:
                 self._channel("/ego/state")
             log.write("/ego/state", t, msg)
@@ -86,7 +86,7 @@ class Recorder:
                 self._channel("/events")
             log.write("/events", t, {"t_s": t, "step": step, "kind": ev.kind, "vehicle": ev.vehicle,
                                      "detail": ev.detail, "value": ev.value})  # fmt: skip
-        for topic, msg in sim.outputs.get("log", {}).items():  # other phases' (/vanet/*, /adas/*, ...)
+        for topic, msg in sim.outputs.log.items():  # other phases' (/vanet/*, /adas/*, ...)
             if topic not in self._channels:
                 self._channel(topic)
             log.write(topic, t, msg)
@@ -206,7 +206,3 @@ def _json_floats(values: list[float], decimals: int | None = None) -> list[str]:
     if not all(map(math.isfinite, values)):
         out = [s if math.isfinite(v) else "null" for s, v in zip(out, values, strict=True)]
     return out
-
-
-def attach_recorder(sim) -> None:
-    sim.add_hook("log", Recorder(sim))

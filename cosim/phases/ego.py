@@ -83,10 +83,6 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
-        sim.add_hook("sumo", self.own_state)
-        sim.add_hook("driver", self.drive)
-        sim.add_hook("ego", self.integrate)
-        sim.add_hook("writeback", self.write_back)
 
     def _start(self, w, slot: int) -> None:
         cx, cy, yaw = frames.sumo_to_mujoco(
@@ -127,7 +123,7 @@ class EgoController:
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
         kw.update(self._yield_line(sim, s_front, tls))
-        adas = sim.outputs.get("adas_displays", {})
+        adas = sim.current.adas_displays
         self.percept = Percept(
             t_s=w.t_s, speed_mps=st.speed_mps, x_m=cx, y_m=cy, yaw_rad=st.yaw_rad, accel_mps2=st.accel_mps2,
             yaw_rate_rps=st.yaw_rate_rps, path_xy_m=self.path.window(s_c - PREVIEW_BEHIND_M, s_c + PREVIEW_AHEAD_M),
@@ -265,7 +261,7 @@ class EgoController:
                                   on_route=self._on_sumo_route and not suspicious)  # fmt: skip
         if ev:
             sim.events.append(ev)
-        sim.outputs["ego_log"] = {
+        sim.current.ego_log = {
             "throttle": round(self.controls.throttle, 4), "brake": round(self.controls.brake, 4),
             "steer": round(self.controls.steer, 4), "physics_speed_mps": round(st.speed_mps, 4),
             "path_offset_m": round(p.lateral_error_m, 4) if p else None,

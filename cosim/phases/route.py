@@ -9,10 +9,9 @@ duration on any map, small ones included, therefore always has road ahead.
 
 from __future__ import annotations
 
-import numpy as np
-
 from cosim.scenario.demand import RouteChainer
-from cosim.sumo_bridge.bridge import LEAD_ID, SumoEvent
+from cosim.seeds import stream
+from cosim.world import LEAD_ID, SumoEvent
 
 EXTEND_AHEAD_M = 2000.0  # another leg is appended when less than this is left ahead of the ego [m]
 RETRY_S = 10.0  # after a batch without a usable leg, the next try waits this long [s]
@@ -22,7 +21,7 @@ class EgoRoute:
     def __init__(self, sim):
         self.sim = sim
         self.edges: list[str] = sim.ego_route  # shared with the ego's controller and the lead
-        self.rng = np.random.default_rng([sim.config.seed, 0x52])
+        self.rng = stream(sim.config.seed, "route")
         self._chainer: RouteChainer | None = None
         self._lead_pending: list[str] = []  # appended edges SUMO has not taken for the lead yet
         self._next_try_s = 0.0

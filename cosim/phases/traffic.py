@@ -25,7 +25,8 @@ import numpy as np
 import shapely
 
 from cosim.scenario.demand import POOL_ROUTE_PREFIX, DemandParams, is_spawn_edge
-from cosim.sumo_bridge.bridge import EGO_ID, LEAD_ID
+from cosim.seeds import stream
+from cosim.world import EGO_ID, LEAD_ID, SCV_VTYPE
 
 UPDATE_EVERY_S = 1.0
 SECTOR_DEG = 45.0  # the paper's generation angle either side of the heading
@@ -43,7 +44,7 @@ class TrafficAroundEgo:
     def __init__(self, sim, params: DemandParams):
         self.sim = sim
         self.params = params
-        self.rng = np.random.default_rng([sim.config.seed, 0x7A])
+        self.rng = stream(sim.config.seed, "traffic")
         self.every = max(1, round(UPDATE_EVERY_S / sim.step_s))
         comp = sim.drivable_edges
         self._lane_km_points(comp)
@@ -55,7 +56,6 @@ class TrafficAroundEgo:
         self.filled = False
         self.credit = 0.0  # vehicles that may still be generated (see REFILL_S)
         sim.stats.update(scv_generated=0, scv_removed=0)
-        sim.add_hook("writeback", self.step)
 
     # -- geometry, once --------------------------------------------------------------------------------
     def _lane_km_points(self, comp: list) -> None:
@@ -195,7 +195,7 @@ class TrafficAroundEgo:
             rid = routes[int(self.rng.integers(len(routes)))]
             vid = f"scv{self.next_id}"
             self.next_id += 1
-            veh.add(vid, rid, typeID="scv", depart="now", departLane="best", departPos=f"{self.spot_pos[k]:.1f}",
+            veh.add(vid, rid, typeID=SCV_VTYPE, depart="now", departLane="best", departPos=f"{self.spot_pos[k]:.1f}",
                     departSpeed="0")  # fmt: skip
             self.pending[vid] = self.sim.world.step
         self.sim.stats["scv_generated"] += n

@@ -9,19 +9,21 @@ see bench/bench_core.py).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from itertools import chain
 
 import numpy as np
 
 from cosim.errors import CosimError
 from cosim.sumo_bridge.tools import binary
-from cosim.world import World
+from cosim.world import (  # noqa: F401 (the ids and SumoEvent are re-exported for old imports)
+    EGO_ID,
+    EGO_VTYPE,
+    LEAD_ID,
+    LEAD_VTYPE,
+    SumoEvent,
+    World,
+)
 
-EGO_ID = "ego"
-LEAD_ID = "lead"
-EGO_VTYPE = "ego_car"  # the scenario's routes define it (cosim.scenario.demand), never teleported
-LEAD_VTYPE = "lead_car"  # the lead vehicle of the following task (cosim.phases.lead)
 # the lead drives a little below the limit, as a leader who wants to be followed does (an SCV's speed
 # factor is drawn from 0.8-1.2: a fast one would leave the participant behind at every stretch)
 LEAD_SPEED_FACTOR = 0.95
@@ -47,14 +49,6 @@ def _backend(use_traci: bool):
     import libsumo
 
     return libsumo
-
-
-@dataclass(frozen=True)
-class SumoEvent:
-    kind: str  # teleport | collision | emergency_stop | ego_off_road | red_light_violation
-    vehicle: str
-    detail: str = ""
-    value: float = float("nan")
 
 
 class _LaneTable(dict):

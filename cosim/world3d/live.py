@@ -6,13 +6,12 @@ What it reads (all optional except the world):
 - ``sim.ego`` (MuJoCo physics): the car's pose incl. pitch / roll / bounce, its brake pedal, its percept
   (speed limit, leader id); without it the ego slot of the world;
 - ``sim.bridge.traffic_lights()``: every light's state string;
-- ``sim.outputs["adas_displays"]``: the Percept kwargs the ADAS phase publishes (``sys_a_lit``: the driver
-  perceives system A's display; ``sys_b_gap_s`` / ``sys_b_level``: system B's display; system B counts as
-  switched on when either key is present);
-- ``sim.outputs["adas"]``: cosim.phases.adas's record of the step: ``system`` in use ('none' | 'A' | 'B'),
+- ``sim.outputs.adas_displays`` (``cosim.outputs.StepOutputs``): the Percept kwargs the ADAS phase gives the
+  driver (``sys_a_lit``: the driver perceives system A's display; ``sys_b_gap_s`` / ``sys_b_level``: system
+  B's display; system B counts as switched on when either key is present);
+- ``sim.outputs.adas``: cosim.phases.adas's record of the step: ``system`` in use ('none' | 'A' | 'B'),
   ``a_lit`` (system A's display is lit, readable or not), ``leader_id`` and the experiment ``phase``;
-  the leader carries a display panel only while system A is in use (lit or dark);
-- ``sim.outputs["rear_display_lit"]`` / ``["experiment_phase"]``: overrides of the above, if a phase sets them.
+  the leader carries a display panel only while system A is in use (lit or dark).
 
 System A's warning is shown only where the paper puts it, on the leader's rear display (``rear_display_lit``);
 the HUD gets ``sys_a_perceived`` as data but draws nothing for it unless ``observer_overlay`` is set, which
@@ -96,20 +95,18 @@ class LiveSource:
         if sim.bridge is not None:
             ids, states = sim.bridge.traffic_lights()
             lights = dict(zip(ids, states, strict=True))
-        adas = dict(sim.outputs.get("adas_displays") or {})
-        rec = sim.outputs.get("adas") or {}  # cosim.phases.adas's record of this step
+        adas = dict(sim.outputs.adas_displays)
+        rec = sim.outputs.adas or {}  # cosim.phases.adas's record of this step
         sys_b_active = "sys_b_gap_s" in adas or "sys_b_level" in adas
         gap = adas.get("sys_b_gap_s")
-        phase = sim.outputs.get("experiment_phase") or rec.get("phase") or None
+        phase = rec.get("phase") or None
         hud = HudState(
             t_s=sim.world.t_s, speed_mps=speed if math.isfinite(speed) else 0.0, speed_limit_mps=limit,
             sys_b_active=sys_b_active, sys_b_gap_s=None if gap is None else float(gap),
             sys_b_level=str(adas.get("sys_b_level") or "none"), sys_a_perceived=bool(adas.get("sys_a_lit", False)),
             observer_overlay=self.observer_overlay, phase=phase, real_time_factor=real_time_factor, note=note,
         )  # fmt: skip
-        if "rear_display_lit" in sim.outputs:
-            lit = bool(sim.outputs["rear_display_lit"])
-        elif rec.get("system") == "A":  # the display is only on while system A is the one in use
+        if rec.get("system") == "A":  # the display is only on while system A is the one in use
             lit = bool(rec.get("a_lit"))
         else:
             lit = True if adas.get("sys_a_lit") else None
