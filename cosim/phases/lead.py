@@ -75,7 +75,8 @@ class LeadVehicle:
         v_ego = float(w.speed_mps[ego])
         caps = []
         if self.wait_beyond_m > 0:
-            caps.append(max(0.0, v_ego + (self.wait_beyond_m - self.gap_m) / CLOSE_TIME_S))
+            v_f, gap_f = self._waited_for(sim, v_ego)
+            caps.append(max(0.0, v_f + (self.wait_beyond_m - gap_f) / CLOSE_TIME_S))
         holds = [c for c in (self._light_cap(sim, v_ego), self._yield_cap(sim)) if c is not None]
         self.waiting = bool(holds) or (self.wait_beyond_m > 0 and self.gap_m > self.wait_beyond_m)
         cap = min(caps + holds) if caps or holds else math.inf
@@ -85,6 +86,17 @@ class LeadVehicle:
         elif self._capped:
             sim.bridge.cap_speed(LEAD_ID, None)
             self._capped = False
+
+    def _waited_for(self, sim, v_ego: float) -> tuple[float, float]:
+        """(speed [m/s], gap [m]) of whom the lead waits for: the ego, or while a car is between them that
+        car. Waiting for the ego behind it would make the lead crawl and hold that car (and so the ego)
+        back until the car turns off."""
+        if self._between is not None:
+            follower = sim.bridge.follower(LEAD_ID, self.wait_beyond_m * 3)
+            slot = sim.world.slot_of.get(follower[0]) if follower else None
+            if slot is not None:
+                return float(sim.world.speed_mps[slot]), follower[1]
+        return v_ego, self.gap_m
 
     def _gap(self, sim, lead: int, ego: int) -> float:
         """Bumper gap along the ego's route path (straight line when the ego has no path)."""

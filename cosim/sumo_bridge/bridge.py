@@ -443,6 +443,11 @@ class SumoBridge:
         res = self.sumo.vehicle.getLeader(vid, distance_m)
         return (res[0], res[1]) if res and res[0] else None
 
+    def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None:
+        """(id, bumper gap [m]) of the vehicle following ``vid`` in its lane within ``distance_m``."""
+        res = self.sumo.vehicle.getFollower(vid, distance_m)
+        return (res[0], res[1] + self.sumo.vehicle.getMinGap(res[0])) if res and res[0] else None
+
     def find_route(self, origin: str, destination: str) -> list[str]:
         """SUMO's fastest route (the run's routing algorithm: A*) from edge to edge; [] when there is none."""
         try:

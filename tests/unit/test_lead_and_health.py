@@ -48,6 +48,9 @@ class FakeBridge:
         assert vid == LEAD_ID
         return ["a", "b", "c"]
 
+    def follower(self, vid, distance_m):
+        return None
+
     def divert(self, vid, keep_off, min_ahead_m):
         self.diverted.append((vid, keep_off))
         return self.exit_edge
@@ -234,3 +237,17 @@ def test_a_standing_foe_counts_unless_something_holds_it_back():
     # held back but only just stopped: still counts (it may be rolling up to its queue)
     sim.bridge.foes = [("foe", 5.0, 10.0, 1.0, True)]
     assert priority_gap_s(sim, LEAD_ID, 5.0) < 4.0
+
+
+def test_with_a_car_between_them_the_lead_keeps_that_car_close_instead_of_crawling():
+    sim = fake_sim(gap_m=60.0, ego_speed=3.0)
+    scv = sim.world.add("scv7", is_ego=False)
+    sim.world.speed_mps[scv] = 10.0
+    lead = LeadVehicle(sim, wait_beyond_m=40.0)
+    sim.ego = SimpleNamespace(s_front_m=None, percept=SimpleNamespace(leader_present=True, leader_id=LEAD_ID))
+    lead.step(sim)
+    assert sim.bridge.caps[-1] == 0.0  # 3 + (40 - 60) / 5 < 0: the lead stands for the lagging ego
+    sim.ego.percept = SimpleNamespace(leader_present=True, leader_id="scv7")
+    sim.bridge.follower = lambda vid, d: ("scv7", 12.0)  # right behind the lead at 10 m/s
+    lead.step(sim)
+    assert sim.bridge.caps[-1] is None  # 10 + (40 - 12) / 5 = 15.6 m/s: above the limit, not capped
