@@ -57,6 +57,11 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         "--tls.discard-simple", "true",
         "--tls.join", "true",
         "--tls.default-type", "static",  # fixed-time plans: deterministic and what the paper's lights do
+        # every approach gets its own green (netconvert's default pairs opposite approaches, so a left turn
+        # waits at a permissive green for a gap in the oncoming stream: on Krems 255094759 that stream turned
+        # right into the same single lane and the left-turn queue, the lead and the ego stood 5-10 minutes;
+        # the ego hit a released right-turner there). SUMO docs, netconvert: --tls.layout opposites|incoming
+        "--tls.layout", "incoming",
         "--ramps.guess", "true",
         # OSM width tags split over the lanes give 1.5-m lanes on narrow two-way streets (Helsinki
         # Siltavuorenpenger): a 1.8-m car on each touches the oncoming one; every car lane gets the default width
