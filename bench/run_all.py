@@ -17,6 +17,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "BENCHMARKS.md"
 BENCHES = [
+    (
+        "headline",
+        "The headline: `cosim run` (everything on) vs the `sumo` binary on the same scenario (issue 20)",
+        ["bench.bench_headline", "--seconds", "120", "--repeat", "3"],
+    ),
     ("scenario", "Scenario build: cold vs cached (issue: scenario pipeline)", ["bench.bench_scenario"]),
     (
         "core",
