@@ -22,6 +22,11 @@ BENCHES = [
         "The headline: `cosim run` (everything on) vs the `sumo` binary on the same scenario (issue 20)",
         ["bench.bench_headline", "--seconds", "120", "--repeat", "3"],
     ),
+    (
+        "sumo_step",
+        "SUMO's own step: the binary, libsumo, and libsumo inside cosim (issue 20 item 2)",
+        ["bench.bench_sumo_step"],
+    ),
     ("scenario", "Scenario build: cold vs cached (issue: scenario pipeline)", ["bench.bench_scenario"]),
     (
         "core",
