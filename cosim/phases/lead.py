@@ -121,13 +121,14 @@ class LeadVehicle:
         if (tls_id, link, green) != self._light:  # a new light, or this one turned green / ended its green
             self._light = (tls_id, link, green)
             self._stop_at_light = False
-            if green:
-                # where the ego's front is when the lead's front is at the line, and how long it needs
-                ego_to_line = (
-                    dist + float(sim.world.length_m[sim.world.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
-                )
-                green_left = sim.bridge.tls_green_left_s(tls_id, link)
-                self._stop_at_light = ego_to_line / max(v_ego, 1.0) + LIGHT_MARGIN_S > green_left
+        v_lead = float(sim.world.speed_mps[sim.world.slot_of[LEAD_ID]])
+        can_stop = dist - STOP_BEFORE_M >= v_lead * v_lead / (2.0 * STOP_DECEL_MPS2)
+        if green and not self._stop_at_light and can_stop:
+            # decided again every step while the lead can still stop: an ego that slows down (a curve, a
+            # car pulling out) may no longer make the green the lead would still get through
+            ego_to_line = dist + float(sim.world.length_m[sim.world.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
+            green_left = sim.bridge.tls_green_left_s(tls_id, link)
+            self._stop_at_light = ego_to_line / max(v_ego, 1.0) + LIGHT_MARGIN_S > green_left
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))

@@ -99,6 +99,31 @@ def test_the_lead_stops_at_a_green_the_ego_would_miss():
     assert not lead2.waiting
 
 
+def test_the_lead_decides_again_when_the_ego_slows_down_before_a_green():
+    sim = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 60.0, "G"), 15.0  # (60+5+30)/8 + 1.5 ~ 13 s: go
+    lead = LeadVehicle(sim, wait_beyond_m=40.0)
+    lead.step(sim)
+    assert not lead.waiting
+    # the ego brakes for a curve: (55+5+30)/4 + 1.5 = 24 s > the 14 s of green left; the lead (8 m/s,
+    # 16 m to stop at 2 m/s^2) can still stop 55 m before the line, so it does
+    sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 4.0
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 55.0, "G"), 14.0
+    lead.step(sim)
+    assert lead.waiting
+    # past the point where it could stop comfortably it goes on whatever the ego does
+    sim2 = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim2.world.speed_mps[sim2.world.slot_of[LEAD_ID]] = 12.0
+    sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 60.0, "G"), 15.0
+    lead2 = LeadVehicle(sim2, wait_beyond_m=40.0)
+    lead2.step(sim2)
+    sim2.world.speed_mps[sim2.world.slot_of[EGO_ID]] = 2.0
+    sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 30.0, "G"), 12.0  # 36 m needed to stop from 12 m/s
+    lead2.step(sim2)
+    assert not lead2.waiting
+
+
 def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_suits_both():
     sim = fake_sim(gap_m=25.0, ego_speed=5.0)
     sim.bridge.link = ("m", 10.0, "s")
