@@ -76,9 +76,9 @@ def _timed(cmd: list[str]) -> tuple[float, float, str]:
 
 def _running(mcap: Path) -> tuple[float, int]:
     """(mean, max) running vehicles over the log's /traffic/vehicles messages (+ the ego)."""
-    from cosim.log import read
-
     import numpy as np
+
+    from cosim.log import read
 
     t = read(mcap, topics=["/traffic/vehicles"])["/traffic/vehicles"]["t_s"]  # one row per vehicle
     counts = np.unique(t, return_counts=True)[1] + 1
@@ -120,18 +120,24 @@ def main() -> None:
     print(f"Helsinki (helsinki.osm.gz), `configs/default.yaml` with `scenario.map` and "
           f"`scenario.demand.vehicles_per_lane_km` set, {args.seconds:g} simulated s, seed 1; "
           f"{args.repeat} interleaved repeat(s), medians.\n")  # fmt: skip
-    print("| veh/lane-km | running vehicles (mean / max) | `sumo -c` [s] | `cosim run` [s] (its loop) "
-          "| cosim / sumo, wall (min-max) | cosim / sumo, CPU | log [MB per sim min] |")
+    print(
+        "| veh/lane-km | running vehicles (mean / max) | `sumo -c` [s] | `cosim run` [s] (its loop) "
+        "| cosim / sumo, wall (min-max) | cosim / sumo, CPU | log [MB per sim min] |"
+    )
     print("|---:|---:|---:|---:|---:|---:|---:|")
     for d, mean_n, max_n, s, c, loop, r, rmin, rmax, rcpu, mb in rows:
-        print(f"| {d:g} | {mean_n:.0f} / {max_n} | {s:.1f} | {c:.1f} ({loop:.1f}) | **{r:.2f}** "
-              f"({rmin:.2f}-{rmax:.2f}) | {rcpu:.2f} | {mb:.2f} |")
-    print("\nsumo: `sumo -c <scenario>/scenario.sumocfg --seed 1 --step-length 0.1 --no-warnings true "
-          "--no-step-log true --additional-files <scenario>/signs.add.xml --end <seconds>` on the scenario "
-          "`cosim run` builds (same routes file: demand area `network`); cosim: `cosim run <config> --quiet`. "
-          "Wall time of the whole command (start-up included); the ratio is per repeat (cosim / the sumo run "
-          "just before it); CPU: user + system time of the command and the children it waited for (cosim's "
-          f"log writer), less sensitive to the other jobs on the shared cores. Load average after: {os.getloadavg()[0]:.1f}.")
+        print(
+            f"| {d:g} | {mean_n:.0f} / {max_n} | {s:.1f} | {c:.1f} ({loop:.1f}) | **{r:.2f}** "
+            f"({rmin:.2f}-{rmax:.2f}) | {rcpu:.2f} | {mb:.2f} |"
+        )
+    print(
+        "\nsumo: `sumo -c <scenario>/scenario.sumocfg --seed 1 --step-length 0.1 --no-warnings true "
+        "--no-step-log true --additional-files <scenario>/signs.add.xml --end <seconds>` on the scenario "
+        "`cosim run` builds (same routes file: demand area `network`); cosim: `cosim run <config> --quiet`. "
+        "Wall time of the whole command (start-up included); the ratio is per repeat (cosim / the sumo run "
+        "just before it); CPU: user + system time of the command and the children it waited for (cosim's "
+        f"log writer), less sensitive to the other jobs on the shared cores. Load average after: {os.getloadavg()[0]:.1f}."
+    )
 
 
 if __name__ == "__main__":

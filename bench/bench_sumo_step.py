@@ -126,10 +126,12 @@ def main() -> None:
     print(f"| in cosim ({c['vehicles']} vehicles), SUMO phase only | {base:.2f} | 1 |")
     for m in ("whole schedule but the radio", "whole schedule"):
         print(f"| in cosim, {m} | {c[m]:.2f} | {c[m] / base:.2f} |")
-    print("\nFirst two rows: separate processes, 3 interleaved pairs, medians. Last three: one cosim run, "
-          "alternating blocks of 10 steps, medians of 20 blocks; the ratio is the cost the other phases "
-          f"put on SUMO's own step (its data evicted from the caches between two steps). Load average "
-          f"after: {os.getloadavg()[0]:.1f}.")
+    print(
+        "\nFirst two rows: separate processes, 3 interleaved pairs, medians. Last three: one cosim run, "
+        "alternating blocks of 10 steps, medians of 20 blocks; the ratio is the cost the other phases "
+        f"put on SUMO's own step (its data evicted from the caches between two steps). Load average "
+        f"after: {os.getloadavg()[0]:.1f}."
+    )
 
 
 if __name__ == "__main__":

@@ -11,7 +11,9 @@ def json_columns(columns: dict[str, np.ndarray], decimals: dict[str, int] | None
         arr = np.asarray(arr)
         if arr.dtype.kind == "f":
             nd = (decimals or {}).get(name)
-            vals = np.round(arr, nd) if nd is not None else arr
+            # rounded in float64: a float32 rounded in float32 is still written with ~16 digits
+            # (82.12 -> 82.12000274658203); float32 values are written as float64 either way
+            vals = np.round(arr.astype(np.float64), nd) if nd is not None else arr
             finite = np.isfinite(vals)
             lst = vals.tolist()
             if not finite.all():

@@ -148,8 +148,8 @@ def _scene(t: float, ids, cx, cy, heading, length, width, is_ego, lamps=()) -> b
         map(_json_str, ids),
         _json_floats(cx.tolist(), 2),
         _json_floats(cy.tolist(), 2),
-        _json_floats([math.sin(y / 2) for y in yaws]),
-        _json_floats([math.cos(y / 2) for y in yaws]),
+        _json_floats([math.sin(y / 2) for y in yaws], 6),  # 6 decimals, as /tf: ~25 % of /scene's bytes
+        _json_floats([math.cos(y / 2) for y in yaws], 6),
         _json_floats(length.tolist()),
         _json_floats(width.tolist()),
         [_EGO_COLOR if e else _SCV_COLOR for e in is_ego.tolist()],
@@ -201,6 +201,8 @@ def _json_floats(values: list[float], decimals: int | None = None) -> list[str]:
         for _ in range(decimals - 1):
             text = text.replace("0,", ",")
         out = text[:-1].split(",")
+        for i in [i for i, v in enumerate(values) if 0 < abs(v) < 1e-4]:  # repr writes these as 7.1e-05
+            out[i] = repr(round(values[i], decimals))
     else:
         out = [repr(round(v, decimals)) for v in values]
     if not all(map(math.isfinite, values)):

@@ -101,7 +101,9 @@ VANET_TX = _obj(
      "slot": cols(INT), "size_bytes": cols(INT), "gen_t_s": cols(NUM), "has_lf": cols(BOOL),
      "n_path_points": cols(INT), "trigger": cols(named_enum("cosim.CamTrigger", CAM_TRIGGERS)),
      "timeout": cols(INT), "offset": cols(INT)},
-    description="CAM transmissions of the step (one row per SOTDMA transmission).",
+    description="CAM transmissions of the step, one row per transmission: those with a row in /vanet/rx "
+                "(vanet.tx_log: rx, the default; with rx_log: ego the CAMs the ego's receiver evaluated) or every "
+                "station's (tx_log: all).",
 )  # fmt: skip
 VANET_RX = _obj(
     "cosim.VanetRx",

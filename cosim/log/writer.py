@@ -71,10 +71,31 @@ def encode(message: dict) -> bytes:
         return json.dumps(_clean(message), separators=(",", ":"), allow_nan=False).encode()
 
 
+ZSTD_LEVEL = 9  # chunks compress ~10 % smaller than at zstd's default 3, at ~1 % of the writer's time
+
+
+class _Zstd:
+    """Stands in for the ``zstandard`` module in ``mcap.writer``, which compresses every chunk with
+    ``zstandard.compress(data)`` at the default level and has no option for another."""
+
+    _compressor = None
+
+    @classmethod
+    def compress(cls, data: bytes) -> bytes:
+        if cls._compressor is None:
+            import zstandard
+
+            cls._compressor = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
+        return cls._compressor.compress(data)
+
+
 class _File:
     """The MCAP file itself: encodes, chunks (zstd) and flushes. Lives where the bytes are written."""
 
     def __init__(self, path: Path, chunk_size: int, flush_every_s: float):
+        import mcap.writer
+
+        mcap.writer.zstandard = _Zstd  # every MCAP file this process writes: the same bytes for the same run
         self._fh = open(path, "wb")  # noqa: SIM115 - closed in close()
         self._writer = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library="cosim")
@@ -131,7 +152,7 @@ def _serve(path: str, chunk_size: int, flush_every_s: float) -> None:
 
 
 class McapLog:
-    def __init__(self, path: str | Path, *, chunk_size: int = 256 * 1024, flush_every_s: float = 2.0,
+    def __init__(self, path: str | Path, *, chunk_size: int = 1024 * 1024, flush_every_s: float = 5.0,
                  background: bool = True):  # fmt: skip
         """``background`` writes from a child process (see the module doc); else in this process.
         ``flush_every_s``: a chunk spans at most this much simulated time (crash-safe flushes)."""

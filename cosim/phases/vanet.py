@@ -26,18 +26,41 @@ _DECIMALS = {
 }
 
 
+def _logged_tx(tx: dict[str, np.ndarray], rx: dict[str, np.ndarray], mode: str) -> dict[str, np.ndarray]:
+    """The rows of ``tx`` that ``vanet.tx_log`` logs: "rx" keeps the transmissions with a reception row
+    this step (a row of /vanet/rx refers to a transmission of the same step: same sender, frame, slot and
+    CAM generation time), "none" none."""
+    if mode == "none" or not len(tx["sender_slot"]):
+        return {k: v[:0] for k, v in tx.items()}
+
+    def keys(cols):
+        return np.stack([cols["sender_slot"].astype(np.int64), cols["frame"].astype(np.int64),
+                         cols["slot"].astype(np.int64), np.round(cols["gen_t_s"] * 1e3).astype(np.int64)], 1)  # fmt: skip
+
+    if not len(rx["sender_slot"]):
+        return {k: v[:0] for k, v in tx.items()}
+    a, b = keys(tx), keys(rx)
+    view = np.dtype((np.void, a.dtype.itemsize * a.shape[1]))
+    keep = np.isin(np.ascontiguousarray(a).view(view).ravel(), np.ascontiguousarray(b).view(view).ravel())
+    return {k: v[keep] for k, v in tx.items()}
+
+
 class VanetPhase:
     def __init__(self, params: VanetParams, buildings: Buildings, rng: np.random.Generator, *, log: bool):
         """``log``: build the step's log messages (``/vanet/*``)."""
         self.layer = VanetLayer(params, buildings, rng)
         self.log = log
+        self.tx_log = params.tx_log
 
     def step(self, world: World, step_s: float) -> tuple[VanetStepResult, dict[str, object]]:
         """One radio step on the snapshot: the layer's result and the log messages, by topic."""
         res = self.layer.step(world, world.step, step_s)
         topics: dict[str, object] = {}
         if self.log:
-            for topic, cols in res.columns().items():
+            columns = res.columns()
+            if self.tx_log != "all":
+                columns["/vanet/tx"] = _logged_tx(columns["/vanet/tx"], columns["/vanet/rx"], self.tx_log)
+            for topic, cols in columns.items():
                 n = len(next(iter(cols.values()))) if cols else 0
                 if n:
                     topics[topic] = json_columns(cols, _DECIMALS)

@@ -62,6 +62,9 @@ class VanetParams:
     rx_log: Literal["all", "ego", "none"] = (
         "ego"  # which receptions go to /vanet/rx ("all": ~10^6 rows/s at 1000)
     )
+    # which transmissions go to /vanet/tx: "rx" those with a row in /vanet/rx (with rx_log: ego, the CAMs the
+    # ego's receiver evaluated), "all" every station's (network-wide slot statistics: ~4x a default log)
+    tx_log: Literal["all", "rx", "none"] = "rx"
     # medium access (issue 18): SOTDMA (the paper), IEEE 802.11p EDCA (mac_80211p) or C-V2X mode 4 SB-SPS
     # (mac_cv2x); the last two through the common interface (mac.py, mac_path.py), same channel and receiver
     mac: Literal["sotdma", "80211p", "cv2x"] = "sotdma"

@@ -6,7 +6,7 @@ Replayed topics:
 
 - ``/ego/state`` (every step): the ego pose (front bumper -> centre with the config's car length), speed,
   leader id, lane (-> speed limit from the network);
-- ``/traffic/vehicles`` (every ``log.traffic_every_steps``, 0.5 s by default): SCVs, interpolated between
+- ``/traffic/vehicles`` (every ``log.traffic_every_steps``, 2 s by default): SCVs, interpolated between
   samples (vehicles in only one sample appear / vanish at the sample);
 - ``/traffic/lights`` (on change): lamp colours;
 - ``/adas/state`` (cosim.phases.adas, every step): which system the driver sees (``system``), system B's

@@ -30,7 +30,8 @@ def _scene_dict(t, ids, cx, cy, heading, length, width, is_ego) -> dict:
             "timestamp": stamp, "frame_id": "map", "id": vid, "lifetime": {"sec": 0, "nsec": 0},
             "frame_locked": False, "metadata": [], "arrows": [],
             "cubes": [{"pose": {"position": {"x": round(float(cx[i]), 2), "y": round(float(cy[i]), 2), "z": 0.75},
-                                "orientation": {"x": 0.0, "y": 0.0, "z": math.sin(yaw / 2), "w": math.cos(yaw / 2)}},
+                                "orientation": {"x": 0.0, "y": 0.0, "z": round(math.sin(yaw / 2), 6),
+                                                "w": round(math.cos(yaw / 2), 6)}},
                        "size": {"x": float(length[i]), "y": float(width[i]), "z": 1.5}, "color": color}],
             "spheres": [], "cylinders": [], "lines": [], "triangles": [], "texts": [], "models": [],
         })  # fmt: skip
@@ -66,9 +67,10 @@ def test_scene_non_finite_values_become_null_like_the_dict_encoding():
 
 def test_json_floats_are_what_json_dumps_writes():
     rng = np.random.default_rng(3)
-    values = [*rng.normal(0, 1000, 5000).tolist(), 0.0, -0.0, 0.125, -0.005, 1e-9, 123456789.995, 1e15, -3e17]
+    values = [*rng.normal(0, 1000, 5000).tolist(), *rng.normal(0, 1e-4, 200).tolist(), 0.0, -0.0, 0.125, -0.005, 1e-9,
+              -7.1e-05, 9.99996e-05, 123456789.995, 1e15, -3e17]  # fmt: skip
     assert _json_floats(values) == [json.dumps(v) for v in values]
-    for nd in (1, 2, 3):
+    for nd in (1, 2, 3, 6):
         assert _json_floats(values, nd) == [json.dumps(round(v, nd)) for v in values]
     assert _json_floats([1.0, math.nan, -math.inf], 2) == ["1.0", "null", "null"]
 
