@@ -152,6 +152,39 @@ class MacOutput:
         return {n: int(v) for n, v in zip(OUTCOME_NAMES, c, strict=False)}
 
 
+class StationArrays:
+    """Per-station state of a MAC: the numpy arrays named in ``_STATE`` (name -> (dtype, fresh value)),
+    indexed by station key, grown on demand and reset when a station starts or stops. A subclass keeps its
+    reactive DCC in ``self.dcc``, which grows and starts with it."""
+
+    _STATE: dict[str, tuple[type, object]] = {}
+    capacity: int = 0
+
+    def ensure_capacity(self, capacity: int) -> None:
+        if capacity <= self.capacity:
+            return
+        old = self.capacity
+        for name, (dt, fill) in self._STATE.items():
+            arr = np.full(capacity, fill, dtype=dt)
+            if old:
+                arr[:old] = getattr(self, name)
+            setattr(self, name, arr)
+        self.dcc.ensure_capacity(capacity)
+        self.capacity = capacity
+
+    def _fresh(self, stations: np.ndarray) -> np.ndarray:
+        """Make room for ``stations`` and reset their state; returns them as int64 (empty: nothing to do)."""
+        stations = np.asarray(stations, dtype=np.int64)
+        if stations.size:
+            self.ensure_capacity(int(stations.max()) + 1)
+            for name, (_, fill) in self._STATE.items():
+                getattr(self, name)[stations] = fill
+        return stations
+
+    def stop(self, stations: np.ndarray) -> None:
+        self._fresh(stations)
+
+
 class Mac(Protocol):
     """Per-station state is kept in arrays indexed by station key (World slot)."""
 

@@ -55,6 +55,7 @@ from cosim.vanet.mac import (
     OK,
     MacInput,
     MacOutput,
+    StationArrays,
     empty_output,
     loss_labels,
     receiver_of,
@@ -143,7 +144,7 @@ class Mac80211pParams:
         return shannon_sinr_threshold_db(bits, t * 1e-6, 10e6)
 
 
-class Mac80211p:
+class Mac80211p(StationArrays):
     """EDCA state of every station (arrays indexed by station key = World slot)."""
 
     name = "80211p"
@@ -168,33 +169,13 @@ class Mac80211p:
         "alive": (np.bool_, False),
     }
 
-    def ensure_capacity(self, capacity: int) -> None:
-        if capacity <= self.capacity:
-            return
-        old = self.capacity
-        for name, (dt, fill) in self._STATE.items():
-            arr = np.full(capacity, fill, dtype=dt)
-            if old:
-                arr[:old] = getattr(self, name)
-            setattr(self, name, arr)
-        self.dcc.ensure_capacity(capacity)
-        self.capacity = capacity
-
     def start(self, stations: np.ndarray, t_us: int = 0, dt_us: int = 100_000) -> None:
-        stations = np.asarray(stations, dtype=np.int64)
+        stations = self._fresh(stations)
         if stations.size == 0:
             return
-        self.ensure_capacity(int(stations.max()) + 1)
-        for name, (_, fill) in self._STATE.items():
-            getattr(self, name)[stations] = fill
         self.alive[stations] = True
         self.phase_us[stations] = self.rng.integers(0, max(dt_us, 1), size=stations.size)
         self.dcc.start(stations)
-
-    def stop(self, stations: np.ndarray) -> None:
-        stations = np.asarray(stations, dtype=np.int64)
-        for name, (_, fill) in self._STATE.items():
-            getattr(self, name)[stations] = fill
 
     # -- one window ------------------------------------------------------------------------------------------
     def step(self, inp: MacInput) -> MacOutput:

@@ -51,6 +51,7 @@ from cosim.vanet.mac import (
     OK,
     MacInput,
     MacOutput,
+    StationArrays,
     dbm_to_mw,
     empty_output,
     loss_labels,
@@ -128,7 +129,7 @@ class Cv2xParams:
         return shannon_sinr_threshold_db(bits, 1e-3, prb * 10e6 / self.channel_rbs)  # RB = 200 kHz of 10 MHz
 
 
-class MacCv2x:
+class MacCv2x(StationArrays):
     """SB-SPS state of every station (arrays indexed by station key = World slot)."""
 
     name = "cv2x"
@@ -155,34 +156,14 @@ class MacCv2x:
         self.stats = {"selections": 0, "keeps": 0, "threshold_raises": 0}
         self.ensure_capacity(capacity)
 
-    def ensure_capacity(self, capacity: int) -> None:
-        if capacity <= self.capacity:
-            return
-        old = self.capacity
-        for name, (dt, fill) in self._STATE.items():
-            arr = np.full(capacity, fill, dtype=dt)
-            if old:
-                arr[:old] = getattr(self, name)
-            setattr(self, name, arr)
-        self.dcc.ensure_capacity(capacity)
-        self.capacity = capacity
-
     def start(self, stations: np.ndarray, t_us: int = 0, dt_us: int = 100_000) -> None:
-        stations = np.asarray(stations, dtype=np.int64)
+        stations = self._fresh(stations)
         if stations.size == 0:
             return
-        self.ensure_capacity(int(stations.max()) + 1)
-        for name, (_, fill) in self._STATE.items():
-            getattr(self, name)[stations] = fill
         self.alive[stations] = True
         self.start_sf[stations] = t_us // 1000
         self.phase_ms[stations] = self.rng.integers(0, max(dt_us // 1000, 1), size=stations.size)
         self.dcc.start(stations)
-
-    def stop(self, stations: np.ndarray) -> None:
-        stations = np.asarray(stations, dtype=np.int64)
-        for name, (_, fill) in self._STATE.items():
-            getattr(self, name)[stations] = fill
 
     # -- one window ------------------------------------------------------------------------------------------
     def step(self, inp: MacInput) -> MacOutput:
