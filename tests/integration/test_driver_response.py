@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from testpaths import ROOT  # tests/ is on sys.path (conftest.py)
 
 from cosim.driver import DriverConfig, make_driver
 from cosim.errors import ConfigError
@@ -12,7 +13,6 @@ from cosim.experiment.analysis import RESPONSE_PARAMETERS
 from cosim.runconfig import load_run_config
 from cosim.sweep.runner import _resolve_overrides, load_config
 from cosim.sweep.spec import load_sweep
-from testpaths import ROOT  # tests/ is on sys.path (conftest.py)
 
 SWEEP = ROOT / "configs" / "sweeps" / "driver_response.yaml"
 

@@ -15,9 +15,9 @@ jsonschema = pytest.importorskip("jsonschema")
 pytest.importorskip("foxglove_schemas_protobuf")
 
 from mcap.reader import make_reader  # noqa: E402
+from testpaths import ROOT as REPO  # noqa: E402  (tests/ is on sys.path: conftest.py)
 
 from cosim.log import foxglove_schemas, schemas  # noqa: E402
-from testpaths import ROOT as REPO  # noqa: E402  (tests/ is on sys.path: conftest.py)
 
 DURATION_S = 15  # the ego from t <= 1 s, then its receptions, system B, channel-load frames, light changes
 EXPECTED = {"/map", "/scene", "/tf", "/ego/state", "/traffic/vehicles", "/traffic/lights", "/vanet/tx", "/vanet/rx",
