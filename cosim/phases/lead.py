@@ -8,17 +8,19 @@ considerate human leader, so the participant spends the drive following it.
   ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
   (after a red light that stopped only the ego, behind a slow participant).
 - At a line where it must yield (stop or give-way sign, minor road, priority to the right, roundabout
-  entry) it waits until the ego has closed up behind it and the priority traffic leaves a gap for both:
+  entry, a permissive green for a left turn) it waits until the ego has closed up behind it and the priority traffic leaves a gap for both:
   the critical gap of the movement plus the follow-up headway the ego needs behind it (HCM 2010,
   ``cosim.driver.gap_acceptance``; shrinking with the waiting time as the ego's own does).
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
   whether the ego, at its present speed, reaches the stop line before the green ends (the programme says
-  when); if not, it stops at the line itself and both wait for the next green.
+  when), again every step while it can still stop; if not, it stops at the line itself and both wait for
+  the next green.
 - A vehicle that comes between the lead and the ego (a cut-in) is logged as a ``lead_cut_in`` event. If it
   is still there ``DIVERT_AFTER_S`` later and its route would keep it on the lead's way, it turns off at the
   next junction it can (``cut_in_diverted``), as a car in front of a confederate lead would eventually do:
   otherwise one cut-in costs the rest of the drive its following task (seen on Krems: 400 s behind one
-  SCV that shared the lead's route).
+  SCV that shared the lead's route). Meanwhile the lead keeps that car, not the ego behind it, within
+  ``wait_beyond_m``: waiting for the ego would make it crawl and hold the car (and the ego) back.
 
 Its speed is only ever capped (SUMO's car following, right of way and lights still hold it back).
 """
