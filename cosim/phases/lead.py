@@ -8,8 +8,9 @@ considerate human leader, so the participant spends the drive following it.
   ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
   (after a red light that stopped only the ego, behind a slow participant).
 - At a line where it must yield (stop or give-way sign, minor road, priority to the right, roundabout
-  entry, a permissive green for a left turn) it waits until the ego has closed up behind it and the priority traffic leaves a gap for both:
-  the critical gap of the movement plus the follow-up headway the ego needs behind it (HCM 2010,
+  entry, a permissive green for a left turn) it waits until the ego has closed up behind it and the
+  priority traffic leaves a gap for both: the critical gap of the movement plus the follow-up headway the
+  ego needs behind it (HCM 2010,
   ``cosim.driver.gap_acceptance``; shrinking with the waiting time as the ego's own does).
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
   whether the ego, at its present speed, reaches the stop line before the green ends (the programme says
