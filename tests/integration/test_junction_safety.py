@@ -51,7 +51,9 @@ def scenarios(tmp_path_factory):
 def test_built_network_has_no_unsafe_junction_geometry(scenarios, name):
     scn = scenarios[name]
     fixes = scn.report["network"]["junction_fixes"]
-    assert fixes["prohibitions_added"] > 10 and fixes["internal_stops_moved"] > 10, fixes  # they were needed
+    # they were needed (fewer internal stops since every signalised approach has its own green, e753290:
+    # no left turn waits inside a signalised junction any more; Munich 7)
+    assert fixes["prohibitions_added"] > 10 and fixes["internal_stops_moved"] >= 5, fixes
     net = sumolib.net.readNet(str(scn.net_file), withInternal=False)
     assert turnaround_deletions(net) == []  # no U-turn where the street goes on
     assert fan_out_deletions(net) == []  # one lane feeds one lane

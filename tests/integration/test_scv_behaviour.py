@@ -97,7 +97,9 @@ def test_scv_stops_6m_before_the_junction_at_red(tmp_path, sumo_closed):
     assert gap_to_junction == pytest.approx(6.0, abs=1.0)
 
 
-def test_scv_keeps_about_two_seconds_behind_a_leader(tmp_path, sumo_closed):
+def test_scv_keeps_its_reaction_time_behind_a_leader(tmp_path, sumo_closed):
+    """Krauss tau (ScvBehaviour.time_gap_s, 1 s: see behaviour.py for why not the paper's 2 s) plus the
+    standstill gap at the speed driven."""
     sk = OsmSketch()
     sk.node("a", -3000, 0)
     sk.node("b", 3000, 0)
@@ -118,4 +120,5 @@ def test_scv_keeps_about_two_seconds_behind_a_leader(tmp_path, sumo_closed):
         if i > 400:
             leader = libsumo.vehicle.getLeader("f", 200)
             gaps.append((leader[1] + 2.5) / libsumo.vehicle.getSpeed("f"))  # getLeader excludes minGap
-    assert np.mean(gaps) == pytest.approx(2.0, abs=0.3)
+    expected = ScvBehaviour().time_gap_s + ScvBehaviour().min_gap_m / 12.0
+    assert np.mean(gaps) == pytest.approx(expected, abs=0.15)
