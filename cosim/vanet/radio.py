@@ -48,6 +48,7 @@ import numpy as np
 
 from cosim.vanet.channel import Aether, ChannelParams
 from cosim.vanet.metrics import BAND_M, AppMetrics, hist_percentile
+from cosim.vanet.report import save_png
 from cosim.vanet.sotdma import SotdmaMac, SotdmaParams, report_rate
 
 PATHLOSS_NAMES = {  # command-line spelling -> ChannelParams.path_loss
@@ -355,9 +356,7 @@ def plot(result: dict, sc: RadioScenario, out_dir: str | Path) -> Path:
     ax.legend(loc="lower left")
     ax.set_title(title(sc), fontsize=8)
     path = out / "pdr_vs_distance.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_png(fig, path)
     return path
 
 
@@ -413,9 +412,7 @@ def plot_many(results: list[dict], scenarios: list[RadioScenario], ipg_hists, ou
     macs = ", ".join(s.mac for s in scenarios)
     fig.suptitle(title(sc).replace(f": {sc.mac},", f": {macs},"), fontsize=8)
     path = out / "pdr_vs_distance.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_png(fig, path)
     return path
 
 

@@ -54,6 +54,16 @@ def run_title(metadata: dict[str, dict[str, str]] | None) -> str:
     return ", ".join(parts)
 
 
+def save_png(fig, path: Path) -> str:
+    """Lay out, write and close a figure (every vanet plot the same way); returns the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return str(path)
+
+
 def _title(ax, what: str, run: str) -> None:
     ax.set_title(f"{what}\n{run}", fontsize=9)
 
@@ -88,10 +98,7 @@ def vanet_report(
     _title(ax, "Link-level PDR vs distance (10-m bins, CAMs sent)", run)
     ax.grid(alpha=0.3)
     path = out / "pdr_vs_distance.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    plots.append(str(path))
+    plots.append(save_png(fig, path))
 
     aoi = metrics.age_of_information(rx)
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -106,10 +113,7 @@ def vanet_report(
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="lower right")
     path = out / "aoi.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    plots.append(str(path))
+    plots.append(save_png(fig, path))
 
     # application level per 50-m band: PDR counting never-sent CAMs, IPG and age of information
     bands = summary["app_vs_distance"]
@@ -146,10 +150,7 @@ def vanet_report(
     bx.grid(alpha=0.3, which="both")
     _title(bx, "Inter-packet gap and age of information per band", run)
     path = out / "app_vs_distance.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    plots.append(str(path))
+    plots.append(save_png(fig, path))
 
     fig, ax = plt.subplots(figsize=(8, 3.6))
     if len(load.get("t_s", [])):
@@ -171,10 +172,7 @@ def vanet_report(
     ax.grid(alpha=0.3)
     _title(ax, "Channel busy ratio sensed (energy >= CS threshold) beside map-wide slot use", run)
     path = out / "channel_load.png"
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    plots.append(str(path))
+    plots.append(save_png(fig, path))
 
     summary["plots"] = plots
     return summary
