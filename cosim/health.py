@@ -38,6 +38,11 @@ PRESENT_WITHIN_S = 1.0  # the ego is in the simulation this soon after its depar
 MIN_WINDOW_S = 30.0  # shorter windows are not judged on distance and shares [s]
 
 
+def involves_ego(vehicle: str, detail: str) -> bool:
+    """Whether an event is the ego's: it is the vehicle, or a collision's victim (detail "with ego ...")."""
+    return vehicle == EGO_ID or detail.startswith(f"with {EGO_ID} ")
+
+
 class DriveHealth:
     def __init__(self, sim):
         self.sim = sim
@@ -65,7 +70,7 @@ class DriveHealth:
         self.departed.append(int(np.count_nonzero(w.depart_step[w.valid] == w.step)))
         for ev in sim.events:
             if ev.kind in ("collision", "teleport", "lead_cut_in", "ego_stall"):
-                self.events.append((t, ev.kind, ev.vehicle == EGO_ID or f"with {EGO_ID} " in ev.detail))
+                self.events.append((t, ev.kind, involves_ego(ev.vehicle, ev.detail)))
         ego = w.slot_of.get(EGO_ID)
         if ego is None:
             return

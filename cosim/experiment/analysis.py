@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.health import involves_ego
 from cosim.log import Log
 from cosim.vanet.channel import OUTCOME_NAMES
 
@@ -49,9 +50,12 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
     e = log.topics["/ego/state"]
     rx = log.topics.get("/vanet/rx")
     ev = log.topics.get("/events", {})
-    ego_collision_t = (
-        ev["t_s"][(ev["kind"] == "collision") & (ev["vehicle"] == "ego")] if "kind" in ev else np.zeros(0)
-    )
+    ego_collision_t = (  # the ego as collider or as victim, the rule the drive health counts by
+        ev["t_s"][[k == "collision" and involves_ego(v, d) for k, v, d in zip(ev["kind"], ev["vehicle"],
+                                                                          ev["detail"], strict=True)]]
+        if "kind" in ev
+        else np.zeros(0)
+    )  # fmt: skip
     out = []
     for phase in dict.fromkeys(cols["phase"]):
         m = cols["phase"] == phase

@@ -276,3 +276,12 @@ def test_with_a_car_between_them_the_lead_keeps_that_car_close_instead_of_crawli
     sim.bridge.follower = lambda vid, d: ("scv7", 12.0)  # right behind the lead at 10 m/s
     lead.step(sim)
     assert sim.bridge.caps[-1] is None  # 10 + (40 - 12) / 5 = 15.6 m/s: above the limit, not capped
+
+
+def test_a_collision_is_the_egos_whether_it_hit_or_was_hit():
+    from cosim.health import involves_ego
+
+    assert involves_ego(EGO_ID, "with scv3 (junction) on :j_0_0")
+    assert involves_ego("scv822", f"with {EGO_ID} (junction) on :456774382_3_0")  # the summary missed this one
+    assert not involves_ego("scv1", "with scv2 (junction) on :j_0_0")
+    assert not involves_ego("scv1", "with ego2 (front) on e_0")
