@@ -103,7 +103,7 @@ def core(q, n: int, seconds: float, traci: bool = False, vanet: bool = False, mu
             sim.step()
         # SUMO's own step inside this run, timed too: core / that is cosim's overhead free of the drift
         # between two processes on a shared machine (and of the ego and collision options)
-        sumo, sumo_step, in_step = sim.bridge.sumo, sim.bridge.sumo.simulationStep, [0.0]
+        sumo, sumo_step, in_step = sim.bridge._sumo, sim.bridge._sumo.simulationStep, [0.0]
 
         def timed_step(*a):
             s0 = time.perf_counter()

@@ -21,10 +21,11 @@ results can stand on needs (the thresholds below); a run never reports ``ok`` wi
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
-from cosim.world import EGO_ID, LEAD_ID, SumoEvent
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 STALL_S = 90.0  # a standstill outside red lights longer than this (a light cycle) is a stall [s]
 MAX_STANDSTILL_S = 120.0  # a longer standstill degrades the drive [s]
@@ -44,13 +45,18 @@ def involves_ego(vehicle: str, detail: str) -> bool:
 
 
 class DriveHealth:
-    def __init__(self, sim):
-        self.sim = sim
+    """Ports: the run's ego config (whether there is an ego, MuJoCo or SUMO, with a lead, when it departs)
+    and the step length; ``step`` reads the snapshot, the step's events and the ego driver's percept, and
+    returns the events it adds (an ``ego_stall``)."""
+
+    def __init__(self, ego, step_s: float):
+        """``ego``: a ``cosim.runconfig.EgoConfig`` (enabled, physics, lead_vehicle, depart_s are read)."""
+        self.step_s = step_s
         # whom the ego follows is known from its driver's percept (a MuJoCo ego); a plain SUMO ego has none
-        self.sees_leader = bool(sim.config.ego.enabled and sim.config.ego.physics == "mujoco")
-        self.has_lead = self.sees_leader and bool(sim.config.ego.lead_vehicle)
-        self.ego_expected = bool(sim.config.ego.enabled)
-        self.depart_s = float(sim.config.ego.depart_s)
+        self.sees_leader = bool(ego.enabled and ego.physics == "mujoco")
+        self.has_lead = self.sees_leader and bool(ego.lead_vehicle)
+        self.ego_expected = bool(ego.enabled)
+        self.depart_s = float(ego.depart_s)
         self.t: list[float] = []  # per step with the ego present
         self.speed: list[float] = []
         self.following: list[bool] = []
@@ -63,20 +69,22 @@ class DriveHealth:
         self._still_since: float | None = None
         self._stall_logged = False
 
-    def step(self, sim) -> None:
-        w = sim.world
+    def step(self, w: World, events: list[SumoEvent], percept=None,
+             driver_mode: Callable[[], str] = lambda: "") -> list[SumoEvent]:  # fmt: skip
+        """Record the step. ``percept``: the ego driver's ``cosim.driver.Percept`` of the step (None without
+        a MuJoCo ego); ``driver_mode``: what the driver is doing, asked only to name a stall. Returns the
+        events to add to the step's (an ``ego_stall`` once a standstill passes STALL_S)."""
         t = float(w.t_s)
         self.all_t.append(t)
         self.departed.append(int(np.count_nonzero(w.depart_step[w.valid] == w.step)))
-        for ev in sim.events:
+        for ev in events:
             if ev.kind in ("collision", "teleport", "lead_cut_in", "ego_stall"):
                 self.events.append((t, ev.kind, involves_ego(ev.vehicle, ev.detail)))
         ego = w.slot_of.get(EGO_ID)
         if ego is None:
-            return
+            return []
         if self.ego_present_at_s is None:
             self.ego_present_at_s = t
-        percept = getattr(sim.ego, "percept", None)
         speed = float(w.speed_mps[ego])
         leader = percept.leader_id if percept is not None and percept.leader_present else None
         red = percept is not None and percept.tls_state == "r" and percept.tls_dist_m < 60.0
@@ -85,27 +93,31 @@ class DriveHealth:
         self.following.append(leader is not None and percept.leader_gap_m <= FOLLOW_M)
         self.lead_leader.append(leader == LEAD_ID)
         self.at_red.append(red)
-        self._watch_stall(sim, t, speed, red, percept)
+        stall = self._watch_stall(t, speed, red, percept, driver_mode)
+        return [stall] if stall is not None else []
 
-    def _watch_stall(self, sim, t: float, speed: float, red: bool, percept) -> None:
-        """Log an ``ego_stall`` event once a standstill outside red lights passes STALL_S."""
+    def _watch_stall(self, t: float, speed: float, red: bool, percept, driver_mode) -> SumoEvent | None:
+        """An ``ego_stall`` event, once, when a standstill outside red lights passes STALL_S."""
         if speed >= STOPPED_MPS or red:
             self._still_since, self._stall_logged = None, False
-            return
+            return None
         if self._still_since is None:
             self._still_since = t
         if not self._stall_logged and t - self._still_since > STALL_S:
             self._stall_logged = True
-            mode = getattr(getattr(getattr(sim.ego, "driver", None), "debug", None), "mode", "")
-            what = [f"driver: {mode or '?'}"]
+            what = [f"driver: {driver_mode() or '?'}"]
             if percept is not None and percept.leader_present:
                 what.append(f"behind {percept.leader_id} at {percept.leader_gap_m:.0f} m")
             if percept is not None and percept.sign_kind:
                 what.append(
                     f"{percept.sign_kind} line {percept.sign_dist_m:.0f} m ahead at {percept.sign_id}"
                 )
-            sim.events.append(SumoEvent("ego_stall", EGO_ID, f"standing {STALL_S:.0f} s: " + ", ".join(what),
-                                        t - self._still_since))  # fmt: skip
+            return SumoEvent("ego_stall", EGO_ID, f"standing {STALL_S:.0f} s: " + ", ".join(what),
+                             t - self._still_since)  # fmt: skip
+        return None
+
+    def close(self) -> None:
+        pass
 
     def report(self, t0: float = -math.inf, t1: float = math.inf) -> dict:
         """The health of the window [t0, t1] of the run (the whole run by default)."""
@@ -113,7 +125,7 @@ class DriveHealth:
         m = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
         all_t = np.asarray(self.all_t)
         window_s = float(min(t1, all_t[-1]) - max(t0, all_t[0])) if all_t.size else 0.0
-        step_s = self.sim.step_s
+        step_s = self.step_s
         speed = np.asarray(self.speed)[m]
         still = (speed < STOPPED_MPS).astype(np.int8)
         red = np.asarray(self.at_red, dtype=bool)[m]

@@ -28,6 +28,7 @@ from cosim.runconfig import RunConfig
 from cosim.scenario import Scenario, build_scenario
 from cosim.seeds import stream
 from cosim.sumo_bridge.bridge import SumoBridge
+from cosim.sumo_bridge.network import read_network
 from cosim.sumo_bridge.tools import sumo_version
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
@@ -137,8 +138,16 @@ class Simulation:
                 if config.scenario.demand.area == "around_ego":
                     from cosim.phases.traffic import TrafficAroundEgo
 
-                    self.traffic = TrafficAroundEgo(self, config.scenario.demand)
-            self.health = DriveHealth(self)  # after the ego's phases: it reads what they decided
+                    start = (
+                        self.net.getEdge(self.ego_route[0]).getShape()[0] if self.ego_route else (0.0, 0.0)
+                    )
+                    self.traffic = TrafficAroundEgo(config.scenario.demand, self.drivable_edges,
+                                                    self.scenario.routes_file, start_xy=start,
+                                                    rng=stream(config.seed, "traffic"), step_s=self.step_s,
+                                                    bridge=self.bridge)  # fmt: skip
+                    self.stats.update(scv_generated=0, scv_removed=0)
+            self.health = DriveHealth(config.ego, self.step_s)  # scheduled after the ego's phases: it reads
+            # what they decided
             if self.mcap is not None:
                 from cosim.log.recorder import Recorder
 
@@ -151,11 +160,10 @@ class Simulation:
     # -- set-up ----------------------------------------------------------------------------------------------
     @property
     def net(self):
-        """The sumolib network (loaded on first use)."""
+        """The read-only network view with internal lanes (``cosim.sumo_bridge.network``; loaded on first
+        use): route geometry, the drivable edges, the traffic generator's spawn spots, the scene."""
         if self._net is None:
-            import sumolib
-
-            self._net = sumolib.net.readNet(str(self.scenario.net_file), withInternal=True)
+            self._net = read_network(self.scenario.net_file, internal=True)
         return self._net
 
     @cached_property
@@ -190,7 +198,9 @@ class Simulation:
         if ego.physics == "mujoco":
             from cosim.phases.route import EgoRoute
 
-            self.route = EgoRoute(self)
+            self.route = EgoRoute(self.ego_route, rng=stream(self.config.seed, "route"),
+                                  drivable_edges=lambda: self.drivable_edges, bridge=self.bridge, world=self.world,
+                                  emit=self._emit, lead=bool(ego.lead_vehicle))  # fmt: skip
         if ego.depart_s == 0:
             self._place_ego()
 
@@ -270,9 +280,9 @@ class Simulation:
             s.append(("ego", self.ego.integrate))  # ego: MuJoCo integrates the car over the SUMO step
             s.append(("writeback", self.ego.write_back))  # writeback: the ego's pose into SUMO
         if self.traffic is not None:
-            s.append(("writeback", self.traffic.step))  # SCVs generated and removed around the ego
+            s.append(("writeback", self._traffic_step))  # SCVs generated and removed around the ego
         if self.health is not None:
-            s.append(("writeback", self.health.step))  # the run's own health record
+            s.append(("writeback", self._health_step))  # the run's own health record
         if self.recorder is not None:
             s.append(("log", self.recorder))  # log: the step into the MCAP file
         return s
@@ -291,6 +301,20 @@ class Simulation:
             self.current.log["/adas/state"] = out.record
             if out.events is not None:
                 self.current.log["/adas/events"] = out.events
+
+    def _traffic_step(self, sim) -> None:
+        self.traffic.step(self.world)
+        self.stats["scv_generated"], self.stats["scv_removed"] = self.traffic.generated, self.traffic.removed
+
+    def _health_step(self, sim) -> None:
+        ego = self.ego
+        percept = getattr(ego, "percept", None)
+        self.events += self.health.step(self.world, self.events, percept,
+                                        lambda: getattr(getattr(getattr(ego, "driver", None), "debug", None), "mode", ""))  # fmt: skip
+
+    def _emit(self, event: SumoEvent) -> None:
+        """Add an event to this step's (for phases given ``emit`` as a port)."""
+        self.events.append(event)
 
     def add_hook(self, phase: str, fn: Callable[[Simulation], None]) -> None:
         """Run ``fn(sim)`` every step in ``phase``, after the phase's scheduled work (and earlier hooks)."""
@@ -353,6 +377,9 @@ class Simulation:
             return
         self.closed = True
         try:
+            for phase in (self.traffic, self.route, self.adas, self.vanet):
+                if phase is not None:
+                    phase.close()
             if self.mcap is not None:
                 if self.health is not None and self.stats["steps"]:  # the run's own verdict, last in the log
                     self.mcap.write(

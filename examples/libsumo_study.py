@@ -5,7 +5,8 @@ around it, to the network's mean speed, and to CAM delivery and channel load?
 
 The script opens a scenario (``cosim.sim.Simulation``), steps it, reads the per-step ``World`` arrays (all
 vehicles as numpy struct-of-arrays) and the VANET layer's per-step results, and changes SUMO's state
-through libsumo (``sim.bridge.sumo`` is the libsumo module: ``trafficlight``, ``lane``, ``vehicle`` ...).
+through libsumo itself (cosim runs SUMO in this process through libsumo: ``import libsumo`` reaches the same
+simulation, ``trafficlight``, ``lane``, ``vehicle`` ...; cosim's own bridge keeps its handle private).
 Three windows are compared: before, during and after the forced red phase.
 
     python examples/libsumo_study.py [--map configs/maps/munich.osm.gz] [--window 20] [--seed 1]
@@ -19,6 +20,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import libsumo
 import numpy as np
 
 from cosim.runconfig import load_run_config
@@ -47,7 +49,7 @@ class Window:
         speeds = w.speed_mps[w.valid]  # (n_valid,) float64 [m/s]
         self.speed_sum += float(speeds.sum())
         self.samples += int(speeds.size)
-        lane = sim.bridge.sumo.lane
+        lane = libsumo.lane
         self.halted_at_light.append(sum(lane.getLastStepHaltingNumber(ln) for ln in approach_lanes))
         res = sim.outputs.vanet  # the VANET phase's VanetStepResult of this step (radio on)
         if res is not None:
@@ -82,7 +84,7 @@ class Window:
 
 def busiest_light(sim: Simulation) -> tuple[str, list[str]]:
     """The traffic light with the most vehicles on its incoming lanes right now, and those lanes."""
-    tls, lane = sim.bridge.sumo.trafficlight, sim.bridge.sumo.lane
+    tls, lane = libsumo.trafficlight, libsumo.lane
     best, best_n, best_lanes = "", -1, []
     for tid in tls.getIDList():
         lanes = sorted(set(tls.getControlledLanes(tid)))
@@ -112,7 +114,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, object]]:
     })  # fmt: skip
     steps = round(args.window / config.timing.sumo_step_s)
     with Simulation(config, quiet=True) as sim:
-        sumo = sim.bridge.sumo  # the libsumo module of this process
+        sumo = libsumo  # the simulation this process runs
         if sim.vanet is None:
             print("(the VANET layer is off in this config: no PDR / channel load)")
         for _ in range(steps):  # warm-up: let traffic enter the network

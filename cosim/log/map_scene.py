@@ -77,10 +77,9 @@ def _atlas_colors(mesh, atlas, cell: int = 128) -> np.ndarray:
 
 def map_entities(scenario_dir: str | Path) -> list[dict]:
     """The scenario's static scene entities (see the module doc)."""
-    import sumolib
-
     from cosim.scenario.buildings import load_buildings
     from cosim.scenario.signs import load_signs
+    from cosim.sumo_bridge.network import read_network
     from cosim.world3d import geometry as geo
     from cosim.world3d.scene import (
         SceneParams,
@@ -91,7 +90,7 @@ def map_entities(scenario_dir: str | Path) -> list[dict]:
     )
 
     sdir = Path(scenario_dir)
-    net = sumolib.net.readNet(str(sdir / "network.net.xml"), withInternal=False)
+    net = read_network(sdir / "network.net.xml")
     origin = np.zeros(2)  # the network frame, like /scene
     params = SceneParams(wall_tints=1)
     signs = load_signs(sdir / "signs.add.xml") if (sdir / "signs.add.xml").exists() else []

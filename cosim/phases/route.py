@@ -9,19 +9,43 @@ duration on any map, small ones included, therefore always has road ahead.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Protocol
+
+import numpy as np
+
 from cosim.scenario.demand import RouteChainer
-from cosim.seeds import stream
-from cosim.world import LEAD_ID, SumoEvent
+from cosim.world import LEAD_ID, SumoEvent, World
 
 EXTEND_AHEAD_M = 2000.0  # another leg is appended when less than this is left ahead of the ego [m]
 RETRY_S = 10.0  # after a batch without a usable leg, the next try waits this long [s]
 
 
+class RouteBridge(Protocol):
+    """What the route extension asks SUMO (``cosim.sumo_bridge.SumoBridge`` provides it)."""
+
+    def find_route(self, origin: str, destination: str) -> list[str]: ...
+
+    def extend_route(self, vid: str, edges: list[str]) -> bool: ...
+
+
 class EgoRoute:
-    def __init__(self, sim):
-        self.sim = sim
-        self.edges: list[str] = sim.ego_route  # shared with the ego's controller and the lead
-        self.rng = stream(sim.config.seed, "route")
+    """Ports: the route's edge list (extended in place: the ego's controller and the lead share it), its
+    random stream (``cosim.seeds`` "route"), the drivable edges (a callable: computed only when a leg is
+    needed), SUMO's router and the lead's route in SUMO (``bridge``), the snapshot (``world``: the time and
+    whether the lead is in), whether there is a lead, and ``emit`` for its events of the step.
+
+    The ego's controller calls ``step`` (``extend_if_short``) with what is left of the route ahead of it."""
+
+    def __init__(self, edges: list[str], *, rng: np.random.Generator, drivable_edges: Callable[[], list],
+                 bridge: RouteBridge, world: World, emit: Callable[[SumoEvent], None], lead: bool):  # fmt: skip
+        self.edges = edges  # shared with the ego's controller and the lead
+        self.rng = rng
+        self._drivable_edges = drivable_edges
+        self.bridge = bridge
+        self.world = world
+        self.emit = emit
+        self.lead = lead
         self._chainer: RouteChainer | None = None
         self._lead_pending: list[str] = []  # appended edges SUMO has not taken for the lead yet
         self._next_try_s = 0.0
@@ -30,41 +54,45 @@ class EgoRoute:
     @property
     def chainer(self) -> RouteChainer:
         if self._chainer is None:  # the network's drivable part, once per run and only when needed
-            self._chainer = RouteChainer(self.sim.drivable_edges)
+            self._chainer = RouteChainer(self._drivable_edges())
         return self._chainer
 
-    def extend_if_short(self, ahead_m: float) -> bool:
+    def step(self, ahead_m: float) -> bool:
         """Append a leg when less than ``EXTEND_AHEAD_M`` is left ahead of the ego; True when it did."""
         if self._lead_pending:
             self._give_lead_pending()
-        t = self.sim.world.t_s
+        t = self.world.t_s
         if ahead_m >= EXTEND_AHEAD_M or t < self._next_try_s:
             return False
         n = len(self.edges)
         added = self.chainer.extend(self.edges, self.rng, self._legs)
         if not added:
             self._next_try_s = t + RETRY_S
-            self.sim.events.append(SumoEvent("route_not_extended", "ego", f"{ahead_m:.0f} m left", ahead_m))
+            self.emit(SumoEvent("route_not_extended", "ego", f"{ahead_m:.0f} m left", ahead_m))
             return False
         self.extensions += 1
         new = self.edges[n:]
-        self.sim.events.append(SumoEvent("route_extended", "ego", f"+{len(new)} edges to {new[-1]}", added))
-        if self.sim.lead is not None:
+        self.emit(SumoEvent("route_extended", "ego", f"+{len(new)} edges to {new[-1]}", added))
+        if self.lead:
             self._lead_pending += new
             self._give_lead_pending()
         return True
 
+    extend_if_short = step  # the name the ego's controller (cosim.phases.ego) calls it by
+
     def _legs(self, pairs: list[tuple[str, str]]) -> dict[tuple[str, str], list[str]]:
-        bridge = self.sim.bridge
         legs = {}
         for origin, dest in pairs:
-            edges = bridge.find_route(origin, dest)
+            edges = self.bridge.find_route(origin, dest)
             if edges:
                 legs[(origin, dest)] = edges
         return legs
 
     def _give_lead_pending(self) -> None:
-        if LEAD_ID not in self.sim.world.slot_of:
+        if LEAD_ID not in self.world.slot_of:
             return
-        if self.sim.bridge.extend_route(LEAD_ID, self._lead_pending):
+        if self.bridge.extend_route(LEAD_ID, self._lead_pending):
             self._lead_pending = []
+
+    def close(self) -> None:
+        pass

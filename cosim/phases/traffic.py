@@ -19,14 +19,15 @@ vehicles instead of a town's worth while the ego sees and hears the same traffic
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import Protocol
 from xml.etree import ElementTree as ET
 
 import numpy as np
 import shapely
 
 from cosim.scenario.demand import POOL_ROUTE_PREFIX, DemandParams, is_spawn_edge
-from cosim.seeds import stream
-from cosim.world import EGO_ID, LEAD_ID, SCV_VTYPE
+from cosim.world import EGO_ID, LEAD_ID, World
 
 UPDATE_EVERY_S = 1.0
 SECTOR_DEG = 45.0  # the paper's generation angle either side of the heading
@@ -40,22 +41,37 @@ MOVING_MPS = 3.0  # below this the ego counts as standing: new SCVs may start an
 LOCAL_M = 100.0  # a spot whose surroundings already hold the target density gets no new vehicle [m]
 
 
+class TrafficBridge(Protocol):
+    """What the generator asks SUMO (``cosim.sumo_bridge.SumoBridge`` provides it)."""
+
+    def remove_vehicle(self, vid: str) -> None: ...
+
+    def add_scv(self, vid: str, route_id: str, depart_pos_m: float) -> None: ...
+
+
 class TrafficAroundEgo:
-    def __init__(self, sim, params: DemandParams):
-        self.sim = sim
+    """Ports: its demand parameters, the drivable edges (the read-only network view's edges), the
+    scenario's routes file (its pool routes), where the ego starts, its random stream (``cosim.seeds``
+    "traffic"), the step length and SUMO's insertion and removal (``bridge``); ``step`` reads the snapshot.
+    ``generated`` / ``removed`` count the SCVs it inserted and took out."""
+
+    def __init__(self, params: DemandParams, drivable_edges: list, routes_file: str | Path, *,
+                 start_xy: tuple[float, float], rng: np.random.Generator, step_s: float,
+                 bridge: TrafficBridge):  # fmt: skip
         self.params = params
-        self.rng = stream(sim.config.seed, "traffic")
-        self.every = max(1, round(UPDATE_EVERY_S / sim.step_s))
-        comp = sim.drivable_edges
-        self._lane_km_points(comp)
-        self._pool(comp)
-        start = sim.net.getEdge(sim.ego_route[0]).getShape()[0] if sim.ego_route else (0.0, 0.0)
-        self.start_xy = (float(start[0]), float(start[1]))
+        self.bridge = bridge
+        self.rng = rng
+        self.step_s = step_s
+        self.every = max(1, round(UPDATE_EVERY_S / step_s))
+        self._lane_km_points(drivable_edges)
+        self._pool(drivable_edges, routes_file)
+        self.start_xy = (float(start_xy[0]), float(start_xy[1]))
         self.pending: dict[str, int] = {}  # inserted, not yet departed -> step of insertion
         self.next_id = 0
         self.filled = False
         self.credit = 0.0  # vehicles that may still be generated (see REFILL_S)
-        sim.stats.update(scv_generated=0, scv_removed=0)
+        self.generated = 0
+        self.removed = 0
 
     # -- geometry, once --------------------------------------------------------------------------------
     def _lane_km_points(self, comp: list) -> None:
@@ -73,10 +89,10 @@ class TrafficAroundEgo:
             ws.append(np.full(n, lanes * cum[-1] / n / 1000.0))
         self.pt_x, self.pt_y, self.pt_w = (np.concatenate(a) for a in (xs, ys, ws))
 
-    def _pool(self, comp: list) -> None:
+    def _pool(self, comp: list, routes_file: str | Path) -> None:
         """The scenario's pool routes grouped by origin edge, and the spawn spots along those edges."""
         by_origin: dict[str, list[str]] = {}
-        for el in ET.parse(self.sim.scenario.routes_file).getroot().iter("route"):
+        for el in ET.parse(routes_file).getroot().iter("route"):
             rid = el.get("id", "")
             if rid.startswith(POOL_ROUTE_PREFIX):
                 by_origin.setdefault(el.get("edges").split()[0], []).append(rid)
@@ -110,9 +126,8 @@ class TrafficAroundEgo:
         self.spot_capacity = self.params.per_lane_km * lane_km
 
     # -- per update ------------------------------------------------------------------------------------
-    def _centre(self) -> tuple[float, float, float | None]:
+    def _centre(self, w: World) -> tuple[float, float, float | None]:
         """The ego's position and heading [deg] (None while it stands or before it departs)."""
-        w = self.sim.world
         slot = w.slot_of.get(EGO_ID)
         if slot is None:
             return (*self.start_xy, None)
@@ -124,11 +139,11 @@ class TrafficAroundEgo:
         near = np.hypot(self.pt_x - x, self.pt_y - y) <= self.params.radius_m
         return round(self.params.per_lane_km * float(self.pt_w[near].sum()))
 
-    def step(self, sim) -> None:
-        if sim.world.step % self.every and self.filled:
+    def step(self, w: World) -> None:
+        """Once per UPDATE_EVERY_S (every step until the first fill): remove, then generate."""
+        if w.step % self.every and self.filled:
             return
-        x, y, heading = self._centre()
-        w = sim.world
+        x, y, heading = self._centre(w)
         for vid in [v for v in self.pending if v in w.slot_of]:
             del self.pending[vid]
         # out of range: removed (the paper's removal point), as are insertions that never found room
@@ -138,24 +153,24 @@ class TrafficAroundEgo:
             scv[lead] = False
         dist = np.hypot(w.x_m - x, w.y_m - y)
         gone = [w.ids[s] for s in np.flatnonzero(scv & (dist > self.params.radius_m + REMOVE_MARGIN_M))]
-        stale = [v for v, s in self.pending.items() if (w.step - s) * sim.step_s > PENDING_TIMEOUT_S]
+        stale = [v for v, s in self.pending.items() if (w.step - s) * self.step_s > PENDING_TIMEOUT_S]
         for vid in gone + stale:
-            sim.bridge.remove_vehicle(vid)
+            self.bridge.remove_vehicle(vid)
             self.pending.pop(vid, None)
-        sim.stats["scv_removed"] += len(gone) + len(stale)
+        self.removed += len(gone) + len(stale)
         present = int((scv & (dist <= self.params.radius_m)).sum()) + len(self.pending)
         target = self.target(x, y)
         missing = target - present
         slow = self.filled and heading is None  # a standing ego: refill slowly, or the ring ahead of a
         if slow:  # queue pours a stream of fresh cars past it that the queue can never merge into
-            self.credit = min(self.credit + target * self.every * sim.step_s / REFILL_S, max(missing, 1))
+            self.credit = min(self.credit + target * self.every * self.step_s / REFILL_S, max(missing, 1))
             missing = min(missing, int(self.credit))
         if missing > 0:
-            made = self._generate(sim.bridge.sumo.vehicle, x, y, heading, missing)
+            made = self._generate(w, x, y, heading, missing)
             self.credit -= made if slow else 0
         self.filled = True
 
-    def _generate(self, veh, x: float, y: float, heading: float | None, n: int) -> int:
+    def _generate(self, w: World, x: float, y: float, heading: float | None, n: int) -> int:
         """Insert up to ``n`` SCVs; returns how many."""
         p = self.params
         dx, dy = self.spot_xy[:, 0] - x, self.spot_xy[:, 1] - y
@@ -174,7 +189,6 @@ class TrafficAroundEgo:
                 ahead = ring & (off <= SECTOR_DEG)
                 ok = ahead if ahead.any() else ring
         if self.filled:  # spread the vehicles: a road that is already full (a jam) gets no more
-            w = self.sim.world
             cars = w.valid & ~w.is_ego
             cx, cy = w.x_m[cars], w.y_m[cars]
             cand = np.flatnonzero(ok)
@@ -195,8 +209,10 @@ class TrafficAroundEgo:
             rid = routes[int(self.rng.integers(len(routes)))]
             vid = f"scv{self.next_id}"
             self.next_id += 1
-            veh.add(vid, rid, typeID=SCV_VTYPE, depart="now", departLane="best", departPos=f"{self.spot_pos[k]:.1f}",
-                    departSpeed="0")  # fmt: skip
-            self.pending[vid] = self.sim.world.step
-        self.sim.stats["scv_generated"] += n
+            self.bridge.add_scv(vid, rid, self.spot_pos[k])
+            self.pending[vid] = w.step
+        self.generated += n
         return n
+
+    def close(self) -> None:
+        pass

@@ -23,6 +23,7 @@ from cosim.scenario.network import OPTIONS_DIR, build_network, pass1_options
 from cosim.scenario.osm import read_osm
 from cosim.scenario.routetable import RouteTable
 from cosim.scenario.signs import SIGN_KINDS, derive_signs, write_signs
+from cosim.sumo_bridge.network import read_network
 from cosim.sumo_bridge.tools import summarise_warnings, sumo_version
 
 CACHE_FORMAT = 18  # bump when the outputs of a build change for the same inputs
@@ -103,12 +104,10 @@ def _network_counts(net) -> dict:
 
 
 def _build_network_dir(osm, behaviour: ScvBehaviour, tmp: Path) -> dict:
-    import sumolib
-
     t0 = time.perf_counter()
     nb = build_network(osm, behaviour, tmp)
     t1 = time.perf_counter()
-    net = sumolib.net.readNet(str(nb.net_file), withInternal=False)
+    net = read_network(nb.net_file)
     signs = derive_signs(net, nb.placements, nb.junction_kind, nb.tls_approaches, osm.signs)
     write_signs(signs, tmp / "signs.add.xml")
     n_buildings, height_sources, poly_run = build_buildings(osm.path, nb.net_file, tmp / "buildings.poly.xml")
@@ -183,8 +182,6 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
     """
     import dataclasses
 
-    import sumolib
-
     config = config or ScenarioConfig(map=str(osm_path))
     demand = config.demand
     if density is not None:
@@ -218,7 +215,7 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
         try:
             for name in NETWORK_FILES:
                 shutil.copy2(net_dir / name, tmp / name)
-            net = sumolib.net.readNet(str(tmp / "network.net.xml"), withInternal=False)
+            net = read_network(tmp / "network.net.xml")
             t0 = time.perf_counter()
             table = RouteTable(root / "routes.sqlite", net_key)
             try:

@@ -29,6 +29,7 @@ from cosim.scenario.conflicts import (
     turnaround_deletions,
 )
 from cosim.scenario.osm import OsmInfo, SignNode
+from cosim.sumo_bridge.network import read_network
 from cosim.sumo_bridge.tools import ToolRun, run_tool
 
 OPTIONS_DIR = Path(__file__).parent / "netconvert"
@@ -364,13 +365,11 @@ def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
 
 def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> NetworkBuild:
     """Run both netconvert passes into ``workdir``; returns the final network and the sign mapping."""
-    import sumolib
-
     pass1 = workdir / "pass1.net.xml"
     run1 = run_tool("netconvert", pass1_options(osm.path, pass1))
     (workdir / "netconvert.log").write_text(run1.log)
     _check("netconvert", run1, osm.path)
-    net1 = sumolib.net.readNet(str(pass1), withInternal=False)
+    net1 = read_network(pass1)
     if not [e for e in net1.getEdges() if e.allows("passenger")]:
         raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
     placements = place_signs(net1, osm)
@@ -398,7 +397,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     fixes["fix_rounds"] = 1
     for i in range(FIX_ROUNDS - 1):
         con = workdir / "fixes.con.xml"
-        more = junction_fixes(sumolib.net.readNet(str(final), withInternal=False), final, con, fix_log)
+        more = junction_fixes(read_network(final), final, con, fix_log)
         if not any(more.values()):
             con.unlink()
             break

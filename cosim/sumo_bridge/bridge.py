@@ -1,5 +1,9 @@
 """The only place that talks to a running SUMO: start/close, read the snapshot, write the ego back.
 
+The backend handle is private (``_sumo``): the phases call named operations (``remove_vehicle``,
+``add_scv``, ``find_route``, ``extend_route``, ``leader`` ...); the network files are read by
+``cosim.sumo_bridge.network`` and a plain-SUMO check run is ``cosim.sumo_bridge.plain``.
+
 The backend is chosen in one place (``_backend``): libsumo in-process by default, TraCI over TCP with
 ``sumo-gui`` for watching a run; both expose the same API, so the rest of the code path is identical.
 Reading uses plain libsumo getters (measured faster than subscriptions and context queries in libsumo:
@@ -20,6 +24,7 @@ from cosim.world import (  # noqa: F401 (the ids and SumoEvent are re-exported f
     EGO_VTYPE,
     LEAD_ID,
     LEAD_VTYPE,
+    SCV_VTYPE,
     SumoEvent,
     World,
 )
@@ -82,7 +87,7 @@ class SumoBridge:
                  extra_args: tuple[str, ...] = ()):  # fmt: skip
         """``gui`` watches the run in sumo-gui (over TraCI); ``traci`` uses TCP without a GUI (benchmarks)."""
         self.gui = gui
-        self.sumo = _backend(gui or traci)
+        self._sumo = _backend(gui or traci)
         cmd = [binary("sumo-gui" if gui else "sumo"), "-c", str(sumocfg), "--seed", str(seed),
                "--step-length", f"{step_s:g}", "--no-warnings", "true", "--no-step-log", "true",
                # collision detection is the scenario's (its sumocfg), so bare SUMO on it pays the same
@@ -91,7 +96,7 @@ class SumoBridge:
         if gui:
             cmd += ["--start", "true", "--quit-on-end", "true"]
         try:
-            self.sumo.start(cmd)
+            self._sumo.start(cmd)
         except Exception as exc:  # libsumo raises a bare error; the message log has the detail
             raise CosimError(f"SUMO could not start the scenario {sumocfg}: {exc}") from None
         self.step_s = step_s
@@ -111,12 +116,20 @@ class SumoBridge:
     def close(self) -> None:
         if self.open:
             self.open = False
-            self.sumo.close()
+            self._sumo.close()
+
+    @property
+    def sumo(self):
+        """Deprecated alias of the private backend handle, kept only for this class's own right-of-way and
+        lead methods from ``divert`` on (issue 15 is changing them at the time of writing; they move to
+        ``_sumo`` with it). Nothing outside ``cosim.sumo_bridge`` may use it: the phases get named
+        operations (tests/unit/test_import_graph.py checks)."""
+        return self._sumo
 
     # -- stepping --------------------------------------------------------------------------------------------
     def step(self, world: World) -> list[SumoEvent]:
         """Advance SUMO one step and refresh ``world`` in place; returns the step's traffic events."""
-        sumo = self.sumo
+        sumo = self._sumo
         sumo.simulationStep()
         sim = sumo.simulation
         world.step += 1
@@ -190,7 +203,7 @@ class SumoBridge:
         world.lane_index[mslots] = lane_index[rows]
         ego = world.slot_of.get(self.ego_id) if self.ego_id else None
         if ego is not None:
-            veh = self.sumo.vehicle
+            veh = self._sumo.vehicle
             world.lane_pos_m[ego] = veh.getLanePosition(self.ego_id)
             world.lateral_offset_m[ego] = veh.getLateralLanePosition(self.ego_id)
             world.signals[ego] = veh.getSignals(self.ego_id)
@@ -202,58 +215,64 @@ class SumoBridge:
         names = {"position": ("vehicle", "getPosition"), "angle": ("vehicle", "getAngle"),
                  "speed": ("vehicle", "getSpeed"), "lane": ("vehicle", "getLaneID"),
                  "tls_state": ("trafficlight", "getRedYellowGreenState")}  # fmt: skip
-        native = getattr(self.sumo, "_libsumo", None)
+        native = getattr(self._sumo, "_libsumo", None)
         return {
-            k: getattr(native, f"{d}_{m}", None) or getattr(getattr(self.sumo, d), m)
+            k: getattr(native, f"{d}_{m}", None) or getattr(getattr(self._sumo, d), m)
             for k, (d, m) in names.items()
         }
 
     def traffic_lights(self) -> tuple[list[str], list[str]]:
         """(ids, states) of every traffic light, sorted by id (the set of lights never changes in a run)."""
         if self._tls_ids is None:
-            self._tls_ids = sorted(self.sumo.trafficlight.getIDList())
+            self._tls_ids = sorted(self._sumo.trafficlight.getIDList())
         return list(self._tls_ids), list(map(self._getters["tls_state"], self._tls_ids))
 
     # -- ego -------------------------------------------------------------------------------------------------
     def remove_vehicle(self, vid: str) -> None:
         """Take a vehicle (or a pending insertion) out of SUMO; it leaves the world at the next step."""
-        self.sumo.vehicle.remove(vid)
+        self._sumo.vehicle.remove(vid)
         self._removed.append(vid)
 
     def pending_on(self, edges: list[str]) -> list[str]:
         """Vehicles waiting to be inserted whose route starts on one of ``edges``."""
-        veh, wanted = self.sumo.vehicle, set(edges)
-        return [v for v in self.sumo.simulation.getPendingVehicles() if veh.getRoute(v)[0] in wanted]
+        veh, wanted = self._sumo.vehicle, set(edges)
+        return [v for v in self._sumo.simulation.getPendingVehicles() if veh.getRoute(v)[0] in wanted]
 
     def add_vehicle(self, vid: str, route: list[str], *, depart: float | str = "now", type_id: str | None = None,
                     depart_speed: str = "0", color=None) -> None:  # fmt: skip
         rid = f"route_{vid}"
-        self.sumo.route.add(rid, route)
-        self.sumo.vehicle.add(vid, rid, typeID=type_id or "DEFAULT_VEHTYPE", depart=str(depart),
-                              departLane="best", departSpeed=depart_speed)  # fmt: skip
+        self._sumo.route.add(rid, route)
+        self._sumo.vehicle.add(vid, rid, typeID=type_id or "DEFAULT_VEHTYPE", depart=str(depart),
+                               departLane="best", departSpeed=depart_speed)  # fmt: skip
         if color is not None:
-            self.sumo.vehicle.setColor(vid, color)
+            self._sumo.vehicle.setColor(vid, color)
+
+    def add_scv(self, vid: str, route_id: str, depart_pos_m: float) -> None:
+        """Insert an SCV (``SCV_VTYPE``) on the scenario's route ``route_id``, from standstill at
+        ``depart_pos_m`` along its first edge's best lane (``cosim.phases.traffic``)."""
+        self._sumo.vehicle.add(vid, route_id, typeID=SCV_VTYPE, depart="now", departLane="best",
+                               departPos=f"{depart_pos_m:.1f}", departSpeed="0")  # fmt: skip
 
     def place_on_route(self, vid: str, route: list[str], front_m: float, *, type_id: str, color=None) -> None:
         """Add a vehicle on ``route`` with its front bumper ``front_m`` along it and place it there at the next
         step, whatever SUMO's insertion queue holds (moveToXY inserts a vehicle that has not departed yet;
         a plain insertion waits behind every pending vehicle of its edge)."""
         self.add_vehicle(vid, route, depart="now", type_id=type_id, color=color)
-        lane = self.sumo.lane
+        lane = self._sumo.lane
         for edge in route:
-            lanes = [f"{edge}_{i}" for i in range(self.sumo.edge.getLaneNumber(edge))]
+            lanes = [f"{edge}_{i}" for i in range(self._sumo.edge.getLaneNumber(edge))]
             lane_id = next((ln for ln in lanes if _allows_cars(lane.getAllowed(ln))), lanes[0])
             length = lane.getLength(lane_id)
             if front_m <= length or edge == route[-1]:
                 break
             front_m -= length
         pos = min(max(front_m, 0.1), length - 0.1)
-        x, y = self.sumo.simulation.convert2D(edge, pos, int(lane_id.rpartition("_")[2]))
-        self.sumo.vehicle.moveToXY(vid, edge, int(lane_id.rpartition("_")[2]), x, y, keepRoute=1)
+        x, y = self._sumo.simulation.convert2D(edge, pos, int(lane_id.rpartition("_")[2]))
+        self._sumo.vehicle.moveToXY(vid, edge, int(lane_id.rpartition("_")[2]), x, y, keepRoute=1)
 
     def add_lead(self, route: list[str], front_m: float) -> None:
         """The lead vehicle of the following task, placed on ``route`` (see ``place_on_route``)."""
-        vtype = self.sumo.vehicletype
+        vtype = self._sumo.vehicletype
         if LEAD_VTYPE not in vtype.getIDList():
             vtype.copy("DEFAULT_VEHTYPE", LEAD_VTYPE)
             vtype.setSpeedFactor(LEAD_VTYPE, LEAD_SPEED_FACTOR)
@@ -266,7 +285,7 @@ class SumoBridge:
         (``place_on_route``), else queued for insertion at ``depart``. When MuJoCo drives it
         (``controlled``), SUMO must not move it by itself."""
         self.ego_id = EGO_ID
-        vtype = self.sumo.vehicletype
+        vtype = self._sumo.vehicletype
         if EGO_VTYPE not in vtype.getIDList():  # a scenario from elsewhere: SUMO's default car
             vtype.copy("DEFAULT_VEHTYPE", EGO_VTYPE)
         vtype.setLength(EGO_VTYPE, length_m)
@@ -277,7 +296,7 @@ class SumoBridge:
         else:
             self.place_on_route(EGO_ID, route, front_m, type_id=EGO_VTYPE, color=color)
         if controlled:
-            veh = self.sumo.vehicle
+            veh = self._sumo.vehicle
             veh.setSpeedMode(EGO_ID, 0)  # no SUMO safety checks: the physics decides
             veh.setLaneChangeMode(EGO_ID, 0)
 
@@ -293,7 +312,7 @@ class SumoBridge:
         ``verify_on_road`` looks that up first (a search over all lanes, ~5 ms): the caller skips it while
         the ego is plainly on its path.
         """
-        veh, sim = self.sumo.vehicle, self.sumo.simulation
+        veh, sim = self._sumo.vehicle, self._sumo.simulation
         last = self._ego_pose
         if (last is not None and speed_mps < STANDSTILL_SPEED_MPS
                 and math.hypot(x_m - last[0], y_m - last[1]) < STANDSTILL_JITTER_M):  # fmt: skip
@@ -318,7 +337,7 @@ class SumoBridge:
     def set_ego_route(self, edges: list[str]) -> SumoEvent | None:
         """Replace the ego's route in SUMO; ``edges[0]`` must be the edge it is on."""
         try:
-            self.sumo.vehicle.setRoute(EGO_ID, edges)
+            self._sumo.vehicle.setRoute(EGO_ID, edges)
         except Exception as exc:  # libsumo.TraCIException
             return SumoEvent("ego_route_rejected", EGO_ID, str(exc).splitlines()[0][:200])
         return None
@@ -326,7 +345,7 @@ class SumoBridge:
     def extend_route(self, vid: str, edges: list[str]) -> bool:
         """Append ``edges`` to the route SUMO holds for ``vid`` (which must end where they start); False
         when SUMO refused (e.g. while the vehicle is being inserted): the caller tries again later."""
-        veh = self.sumo.vehicle
+        veh = self._sumo.vehicle
         try:
             held = veh.getRoute(vid)
             veh.setRoute(vid, [*held[veh.getRouteIndex(vid) :], *edges])

@@ -535,17 +535,16 @@ def build_scene(scenario, params: SceneParams | None = None, *, car=None, net=No
     signs.add.xml). car: the ego's :class:`cosim.ego_mujoco.CarParams` (sizes the visual ego; default car).
     net: an already loaded sumolib network of that scenario (saves re-reading it).
     """
-    import sumolib
-
     from cosim.ego_mujoco import CarParams
     from cosim.scenario.buildings import load_buildings
     from cosim.scenario.signs import load_signs
+    from cosim.sumo_bridge.network import read_network
 
     t0 = time.perf_counter()
     p = params or SceneParams()
     sdir = Path(getattr(scenario, "dir", scenario))
     if net is None:
-        net = sumolib.net.readNet(str(sdir / "network.net.xml"), withInternal=False)
+        net = read_network(sdir / "network.net.xml")
     (xmin, ymin), (xmax, ymax) = net.getBBoxXY()
     origin = np.array([round(0.5 * (xmin + xmax)), round(0.5 * (ymin + ymax))], dtype=np.float64)
     signs = load_signs(sdir / "signs.add.xml") if (sdir / "signs.add.xml").exists() else []

@@ -147,7 +147,7 @@ def test_an_ego_standing_for_minutes_is_never_teleported_away():
                                    "duration_s": 180.0, "seed": 2, "ego.physics": "sumo",
                                    "ego.lead_vehicle": False, "vanet": None})  # fmt: skip
     with Simulation(cfg) as sim:
-        veh = sim.bridge.sumo.vehicle
+        veh = libsumo.vehicle  # the run's SUMO: libsumo runs in this process
         while EGO_ID not in sim.world.slot_of:
             sim.step()
         veh.setSpeed(EGO_ID, 0.0)

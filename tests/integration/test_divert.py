@@ -40,7 +40,7 @@ def test_a_car_is_sent_off_the_way_and_never_back_onto_it(crossroads):
     libsumo.start(["sumo", "-n", str(crossroads), "--no-step-log", "true"])
     try:
         bridge = SumoBridge.__new__(SumoBridge)  # only the SUMO handle: divert needs nothing else
-        bridge.sumo = libsumo
+        bridge._sumo = libsumo
         way = {"WC", "CE", "EF"}
         libsumo.route.add("r", ["WC", "CE", "EF"])
         libsumo.vehicle.add("x", "r", depart="now", departPos="280", departSpeed="0")

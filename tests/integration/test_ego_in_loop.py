@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import libsumo  # the runs' SUMO: libsumo runs in this process
 import numpy as np
 import pytest
 from osm_factory import OsmSketch
@@ -30,7 +31,7 @@ def test_scripted_driver_300s_on_the_default_map(tmp_path):
 
     def check_route(sim) -> None:
         if "ego" in sim.world.slot_of:
-            held, planned = list(sim.bridge.sumo.vehicle.getRoute("ego")), sim.ego_route
+            held, planned = list(libsumo.vehicle.getRoute("ego")), sim.ego_route
             if not any(
                 planned[i : i + len(held)] == held for i in range(len(planned))
             ):  # not a stretch of it
@@ -80,7 +81,7 @@ def test_ego_stops_at_red_and_its_sumo_follower_stops_behind(tmp_path):
                                    "ego.route": [approach.getID(), exit_.getID()], "ego.depart_s": 1.0,
                                    "ego.driver.profile": "daily_commuter", "vanet": None})  # fmt: skip
     with Simulation(cfg, out_dir=tmp_path / "run", scenario=scn, sumo_args=("--route-files", "")) as sim:
-        tls = sim.bridge.sumo.trafficlight
+        tls = libsumo.trafficlight
         (tls_id,) = tls.getIDList()
         n = len(tls.getRedYellowGreenState(tls_id))
         sim.bridge.add_vehicle(

@@ -203,12 +203,12 @@ def _step(sim, health, t, speed, leader=None, gap=20.0, events=()):
                                                       sign_kind=None),
                               driver=SimpleNamespace(debug=SimpleNamespace(mode="leader")))  # fmt: skip
     sim.events = list(events)
-    health.step(sim)
+    sim.events += health.step(w, sim.events, sim.ego.percept, lambda: sim.ego.driver.debug.mode)
 
 
 def test_health_of_a_good_drive_is_ok_and_of_a_stalled_one_degraded():
     sim = _health_sim()
-    health = DriveHealth(sim)
+    health = DriveHealth(sim.config.ego, sim.step_s)
     for k in range(1, 601):  # 60 s at 10 m/s behind the lead
         _step(sim, health, k * 0.1, 10.0, LEAD_ID)
     rep = health.report()
@@ -217,7 +217,7 @@ def test_health_of_a_good_drive_is_ok_and_of_a_stalled_one_degraded():
     assert rep["following_share"] == 1.0 and rep["lead_leader_share"] == 1.0
 
     sim = _health_sim()
-    health = DriveHealth(sim)
+    health = DriveHealth(sim.config.ego, sim.step_s)
     for k in range(1, 1501):  # 150 s standing behind another car
         _step(sim, health, k * 0.1, 0.0, "scv1")
     rep = health.report()
@@ -229,7 +229,7 @@ def test_health_of_a_good_drive_is_ok_and_of_a_stalled_one_degraded():
 
 def test_health_windows_and_collisions():
     sim = _health_sim(lead=False)
-    health = DriveHealth(sim)
+    health = DriveHealth(sim.config.ego, sim.step_s)
     for k in range(1, 601):
         ev = [SumoEvent("collision", "scv1", "with scv2 (junction) on :J_0")] if k == 300 else []
         _step(sim, health, k * 0.1, 5.0, None, events=ev)
@@ -240,9 +240,9 @@ def test_health_windows_and_collisions():
 
 def test_health_says_so_when_the_ego_never_drove():
     sim = _health_sim()
-    health = DriveHealth(sim)
+    health = DriveHealth(sim.config.ego, sim.step_s)
     sim.world.step, sim.world.t_s = 1, 0.1
-    health.step(sim)
+    assert health.step(sim.world, []) == []
     rep = health.report()
     assert rep["status"] == "degraded" and rep["problems"] == ["the ego never drove in this window"]
 

@@ -1,0 +1,20 @@
+"""The read-only network view: SUMO's network file as a sumolib network, read here and only here.
+
+Route geometry (``cosim.driver.route.RoutePath``), the drivable part of the network, the traffic
+generator's spawn spots, the 3D scene, the map on ``/map`` and the scenario build all read the network
+through this function; they use the returned object's getters (``getEdge``, ``getEdges``, ``getShape``,
+``getLanes`` ...) and never change it. No module outside ``cosim.sumo_bridge`` imports sumolib, libsumo or
+traci (tests/unit/test_import_graph.py).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def read_network(net_file: str | Path, *, internal: bool = False):
+    """The network of ``net_file`` (a ``sumolib.net.Net``); ``internal``: with the junctions' internal
+    lanes (route geometry through junctions needs them)."""
+    import sumolib
+
+    return sumolib.net.readNet(str(net_file), withInternal=internal)

@@ -1,0 +1,63 @@
+"""The run's health record as a phase with fake ports: its ego config, a World, the step's events and a
+percept written by the test (no SUMO, no MuJoCo)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+from cosim.health import STALL_S, DriveHealth
+from cosim.runconfig import EgoConfig
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
+
+
+def _percept(leader=LEAD_ID, tls="g"):
+    return SimpleNamespace(leader_present=leader is not None, leader_id=leader, leader_gap_m=12.0, tls_state=tls,
+                           tls_dist_m=30.0, sign_kind="stop", sign_dist_m=4.0, sign_id="J7")  # fmt: skip
+
+
+def _drive(health, w, seconds, speed, percept, asked, events_at=None):
+    out = []
+    for _ in range(round(seconds / 0.1)):
+        w.step += 1
+        w.t_s = round(w.step * 0.1, 6)
+        w.speed_mps[w.slot_of[EGO_ID]] = speed
+        events = list(events_at.get(w.step, [])) if events_at else []
+
+        def mode():
+            asked.append(w.t_s)
+            return "stop_line"
+
+        out += health.step(w, events, percept, mode)
+    return out
+
+
+def test_a_long_standstill_outside_red_is_reported_once_with_what_the_ego_waited_for():
+    health = DriveHealth(EgoConfig(), 0.1)
+    w = World(capacity=4)
+    w.add(EGO_ID, is_ego=True)
+    asked: list[float] = []
+    added = _drive(health, w, 30.0, 10.0, _percept(), asked)
+    assert added == [] and asked == []  # the driver's mode is asked only to name a stall
+    added = _drive(health, w, STALL_S + 10.0, 0.0, _percept(), asked)
+    assert [e.kind for e in added] == ["ego_stall"] and len(asked) == 1
+    assert added[0].vehicle == EGO_ID and added[0].value > STALL_S
+    assert "driver: stop_line" in added[0].detail and f"behind {LEAD_ID} at 12 m" in added[0].detail
+    assert "stop line 4 m ahead at J7" in added[0].detail
+    # at a red light a standstill is no stall
+    assert _drive(health, w, STALL_S + 10.0, 0.0, _percept(tls="r"), asked) == []
+    health.close()
+
+
+def test_events_counted_and_a_sumo_ego_has_no_following_shares():
+    health = DriveHealth(EgoConfig(physics="sumo"), 0.1)
+    w = World(capacity=4)
+    w.add(EGO_ID, is_ego=True)
+    crash = SumoEvent("collision", "scv3", f"with {EGO_ID} (junction) on :j_0")
+    _drive(health, w, 40.0, 8.0, None, [], events_at={5: [crash], 6: [SumoEvent("teleport", "scv4")]})
+    rep = health.report()
+    assert rep["following_share"] is None and rep["lead_leader_share"] is None and rep["cut_ins"] is None
+    assert rep["collisions"] == 1 and rep["ego_collisions"] == 1 and rep["teleports"] == 1
+    assert rep["ego_distance_m"] == 320.0 and rep["window_s"] == 39.9
+    assert rep["status"] == "degraded" and "1 collision(s) of the ego" in rep["problems"]
+    assert math.isclose(health.report(10.0, 40.0)["ego_distance_m"], 240.8)
