@@ -8,8 +8,13 @@ On the full default map (configs/default.yaml: Krems), with software OpenGL (Mes
    steps between frames but is not timed here. Shadows off, no multisampling (the defaults);
 3. drive: the real-time loop of ``cosim drive`` (headless: ``SDL_VIDEODRIVER=dummy``) for ``--seconds`` of
    wall time in medium-high traffic (the experiment's setting: 7.5 vehicles per lane-km within 250 m of
-   the route; and the same density on the whole network), scripted driver in the seat (input devices cost
-   nothing measurable): real-time factor, frames per second, late steps, time per step and per frame.
+   the route; and the same density on the whole network), scripted driver in the seat: the simulation's
+   real-time factor, late steps and time per step; the viewer process's frames per second, time per frame,
+   stalled frames (the same picture again: a step came late) and input-to-display latency (median, p95)
+   measured with a synthetic key toggled in the viewer every 0.37 s: from the viewer reading the key to the
+   first frame that moves towards the step which read it ('first') and to the frame that shows that step
+   whole ('full', one step later with interpolation). At 640x360 the loop before issue 20 (rendering in the
+   simulation's process between steps) runs in turn with it, ``--repeat`` times each.
 
 Each part runs in its own process (libsumo runs one simulation per process). The machine may be shared:
 numbers are wall-clock.
@@ -91,26 +96,90 @@ def fps_part(frames: int, q) -> None:
         q.put(rows)
 
 
-def drive_part(label: str, size: tuple[int, int], seconds: float, overrides: dict, q) -> None:
-    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+def _drive_setup(overrides: dict):
     from cosim.sim import Simulation
-    from cosim.world3d.drive import DriveParams, DriveSession, wait_for_ego
 
     cfg = _config(duration_s=3600.0, **overrides)
-    session = DriveSession(DriveParams(width=size[0], height=size[1], fps=30.0))
+    return Simulation(cfg)
+
+
+def _settle(sim, viewer=None) -> None:
+    from cosim.world3d.drive import wait_for_ego
+
+    wait_for_ego(sim, viewer)  # at medium-high density on the whole map the ego departs after ~160 s
+    t_ready = sim.world.t_s + 20.0
+    while sim.world.t_s < t_ready:  # SUMO's initial insertions are slow: start in settled traffic
+        sim.step()
+        if viewer is not None and round(sim.world.t_s * 10) % 20 == 0:
+            viewer.poll()  # take in the viewer's messages now and then
+
+
+def drive_part(label: str, size: tuple[int, int], seconds: float, overrides: dict, q) -> None:
+    """``cosim drive``'s loop (DriveSession: the viewer in its own process), the scripted driver in the seat,
+    the viewer toggling a synthetic key every 0.37 s for the input-to-display latency."""
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    from cosim.world3d.drive import DriveParams, DriveSession
+
+    session = DriveSession(DriveParams(width=size[0], height=size[1], fps=30.0), probe_every_s=0.37)
     try:
-        with Simulation(cfg) as sim:
+        with _drive_setup(overrides) as sim:
             session.scene_for(sim)
-            wait_for_ego(sim)  # at medium-high density on the whole map the ego departs after ~160 s
-            t_ready = sim.world.t_s + 20.0
-            while sim.world.t_s < t_ready:  # SUMO's initial insertions are slow: start in settled traffic
-                sim.step()
+            _settle(sim, session.window)
             stats = session.run(sim, duration_s=seconds)
             stats["vehicles"] = sim.world.n_valid
     finally:
         session.close()
-    keep = ("real_time_factor", "fps", "late_steps", "lag_resets", "steps", "step_ms", "frame_ms", "vehicles")
-    q.put({"part": "drive", "traffic": label, "size": f"{size[0]}x{size[1]}", **{k: stats[k] for k in keep}})
+    keep = ("real_time_factor", "late_steps", "step_ms", "fps", "frame_ms", "stalled_frames", "latency_first_ms",
+            "latency_first_p95_ms", "latency_full_ms", "latency_full_p95_ms", "input_events", "vehicles")  # fmt: skip
+    q.put({"part": "drive", "loop": "viewer process", "traffic": label, "size": f"{size[0]}x{size[1]}",
+           **{k: stats.get(k) for k in keep}})  # fmt: skip
+
+
+def inprocess_part(label: str, size: tuple[int, int], seconds: float, overrides: dict, q) -> None:
+    """The loop ``cosim drive`` had before issue 20 (for the comparison in the same run): render in the
+    simulation's process between steps, interpolated, at most 30 FPS, every step shown at least once."""
+    import time as _t
+
+    import cosim.world3d.render as render
+    from cosim.world3d.live import LiveSource
+    from cosim.world3d.scene import build_scene
+    from cosim.world3d.state import Interpolator
+
+    with _drive_setup(overrides) as sim:
+        scene = build_scene(sim.scenario, car=sim.config.ego.car, net=sim.net)
+        view = render.View(scene, render.ViewParams(size[0], size[1], "driver"))
+        _settle(sim)
+        src, dt, frame_dt, clock = LiveSource(sim), sim.step_s, 1.0 / 30.0, _t.perf_counter
+        steps, k, frames, late, busy = round(seconds / dt), 0, 0, 0, 0.0
+        prev = cur = interp = None
+        t0 = clock()
+        last_frame, need_frame = -1.0, False
+        while k < steps:
+            now = clock()
+            due = t0 + k * dt
+            if now >= due and not need_frame:
+                late += now - due > dt
+                t_step = clock()
+                sim.step()
+                k += 1
+                prev, cur = cur, src.frame()
+                interp = Interpolator(prev, cur) if prev is not None else None
+                need_frame = True
+                busy += clock() - t_step
+                continue
+            if cur is not None and (need_frame or now - last_frame >= frame_dt):
+                alpha = (now - (t0 + (k - 1) * dt)) / dt
+                view.render(interp.at(alpha) if interp is not None else cur)
+                frames, last_frame, need_frame = frames + 1, now, False
+                continue
+            pause = min(t0 + k * dt, last_frame + frame_dt) - clock()
+            if pause > 0.0005:
+                _t.sleep(min(pause, 0.02))
+        wall = clock() - t0
+        view.close()
+        q.put({"part": "drive", "loop": "in-process (before)", "traffic": label, "size": f"{size[0]}x{size[1]}",
+               "real_time_factor": round(seconds / wall, 3), "late_steps": late, "step_ms": round(1e3 * busy / k, 1),
+               "fps": round(frames / wall, 1), "vehicles": sim.world.n_valid})  # fmt: skip
 
 
 def _guarded(target, args, q) -> None:
@@ -144,6 +213,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=30.0, help="wall seconds of each real-time drive")
     ap.add_argument("--frames", type=int, default=120, help="frames per size in the fps part")
+    ap.add_argument("--repeat", type=int, default=3, help="drives of each loop at 640x360 (interleaved)")
     ap.add_argument("--skip-drive", action="store_true")
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
@@ -153,12 +223,12 @@ def main() -> None:
         experiment = {"scenario.demand.density": "medium_high", "scenario.demand.area": "ego_route",
                       "scenario.demand.corridor_m": 250}  # fmt: skip
         network = {"scenario.demand.density": "medium_high"}
-        for label, over in (
-            ("medium_high, route corridor (experiment)", experiment),
-            ("medium_high, whole map", network),
-        ):
-            for size in ((640, 360), (1280, 720)):
-                rows += _run(drive_part, label, size, args.seconds, over)
+        label = "medium_high, route corridor (experiment)"
+        for _ in range(args.repeat):  # the new loop and the old one in turn, under the same load
+            rows += _run(drive_part, label, (640, 360), args.seconds, experiment)
+            rows += _run(inprocess_part, label, (640, 360), args.seconds, experiment)
+        rows += _run(drive_part, label, (1280, 720), args.seconds, experiment)
+        rows += _run(drive_part, "medium_high, whole map", (640, 360), args.seconds, network)
     if args.json:
         print(json.dumps(rows))
     else:
@@ -177,7 +247,42 @@ def markdown(rows: list[dict]) -> str:
         out += [f"**{title}**", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         out += ["| " + " | ".join(str(r.get(c, "")) for c in cols) + " |" for r in sel]
         out.append("")
+    out += summary(rows)
     return "\n".join(out)
+
+
+def _range(rows: list[dict], key: str) -> str:
+    import numpy as np
+
+    v = [r[key] for r in rows if r.get(key) is not None]
+    return f"{np.median(v):g} ({min(v):g}-{max(v):g})" if v else "-"
+
+
+def summary(rows: list[dict]) -> list[str]:
+    """The 640x360 route-corridor drives: medians (min-max) of the viewer-process loop and the loop before."""
+    sel = [
+        r
+        for r in rows
+        if r.get("part") == "drive" and r.get("size") == "640x360" and "corridor" in r.get("traffic", "")
+    ]
+    new = [r for r in sel if r.get("loop") == "viewer process" and "error" not in r]
+    old = [r for r in sel if r.get("loop") == "in-process (before)" and "error" not in r]
+    if not new:
+        return []
+    out = [f"Summary, 640x360, experiment traffic, {len(new)} drive(s) of each loop, median (min-max): viewer process "
+           f"{_range(new, 'fps')} FPS at real-time factor {_range(new, 'real_time_factor')} with "
+           f"{_range(new, 'late_steps')} late steps; input-to-display latency {_range(new, 'latency_first_ms')} ms "
+           f"to the first frame moving towards the step that read the input, {_range(new, 'latency_full_ms')} ms to "
+           f"the frame showing it whole (p95 {_range(new, 'latency_full_p95_ms')} ms)."]  # fmt: skip
+    if old:
+        out[-1] += (f" The loop before (rendering in the simulation's process): {_range(old, 'fps')} FPS at "
+                    f"real-time factor {_range(old, 'real_time_factor')}.")  # fmt: skip
+    threads = os.environ.get("LP_NUM_THREADS") or str(max(1, (os.cpu_count() or 2) - 1))
+    out += [
+        "",
+        f"llvmpipe threads in the viewer: {threads} (LP_NUM_THREADS); load average after: {os.getloadavg()[0]:.1f}.",
+    ]
+    return out
 
 
 if __name__ == "__main__":

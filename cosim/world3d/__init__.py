@@ -8,7 +8,8 @@ real-time window of ``cosim drive`` and the video of ``cosim render``.
 - ``state``: :class:`FrameState` and friends (pure data), the vehicle pool rule, interpolation;
 - ``live``: :class:`LiveSource` (a running Simulation -> FrameState);
 - ``cli``: ``add_drive_parser`` / ``main_drive``, ``add_render_parser`` / ``main_render`` (light imports);
-- ``drive``: :class:`DriveSession` (the real-time loop in a pygame window), :func:`run_drive`;
+- ``drive``: :class:`DriveSession` (the real-time loop; the window is the viewer's), :func:`run_drive`;
+- ``viewer``: :class:`Viewer` (the drive view in its own process: window, input devices, interpolated frames);
 - ``replay``: :func:`render_log` (MCAP -> MP4 / PNG).
 
 Geometry, state, HUD and textures import without MuJoCo; the rest loads it (rendering sets ``MUJOCO_GL=egl``

@@ -78,15 +78,28 @@ class LiveSource:
             leader = lead[0] if lead else None
         return pose, float(w.speed_mps[i]), limit, leader
 
-    def vehicles(self) -> VehicleFrame:
+    def vehicles(self, near: tuple[float, float] | None = None, nearest: int | None = None,
+                 max_distance_m: float = math.inf) -> VehicleFrame:  # fmt: skip
+        """The SCVs; with ``near`` (a network point): only the ``nearest`` ones (all if None) within
+        ``max_distance_m`` of it (the scene's vehicle pool shows no others; fewer to send to a viewer)."""
         w = self.sim.world
         idx = np.flatnonzero(w.valid & ~w.is_ego)
         cx, cy, yaw = frames.sumo_to_mujoco(w.x_m[idx], w.y_m[idx], w.heading_deg[idx], w.length_m[idx])
+        if near is not None:
+            dist = np.hypot(cx - near[0], cy - near[1])
+            keep = np.flatnonzero(dist <= max_distance_m)
+            if nearest is not None and len(keep) > nearest:
+                keep = keep[np.argpartition(dist[keep], nearest - 1)[:nearest]]
+                keep.sort()
+            idx, cx, cy, yaw = idx[keep], cx[keep], cy[keep], yaw[keep]
         return VehicleFrame(
             tuple(w.ids[i] for i in idx.tolist()), cx, cy, yaw, (w.signals[idx] & SIGNAL_BRAKELIGHT) != 0
         )
 
-    def frame(self, real_time_factor: float | None = None, note: str | None = None) -> FrameState:
+    def frame(self, real_time_factor: float | None = None, note: str | None = None, nearest: int | None = None,
+              max_distance_m: float = math.inf) -> FrameState:  # fmt: skip
+        """The state to show now; ``nearest`` / ``max_distance_m``: only those SCVs around the ego
+        (:meth:`vehicles`)."""
         sim = self.sim
         if note is None and sim.bridge is not None and not getattr(sim.bridge, "ego_on_road", True):
             note = "off the road"
@@ -111,4 +124,8 @@ class LiveSource:
         else:
             lit = True if adas.get("sys_a_lit") else None
         leader = rec.get("leader_id") or leader
-        return FrameState(sim.world.t_s, pose, self.vehicles(), lights, leader, lit, hud)
+        near = (
+            None if pose is None or (nearest is None and math.isinf(max_distance_m)) else (pose.x_m, pose.y_m)
+        )
+        vehicles = self.vehicles(near, nearest, max_distance_m)
+        return FrameState(sim.world.t_s, pose, vehicles, lights, leader, lit, hud)

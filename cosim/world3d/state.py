@@ -164,3 +164,55 @@ class Interpolator:
         vehicles = VehicleFrame(vb.ids, x, y, yaw, vb.braking)
         return FrameState(a.t_s + t * (b.t_s - a.t_s), ego, vehicles, b.lights, b.leader_id, b.rear_display_lit,
                           b.hud)  # fmt: skip
+
+
+class Playback:
+    """What a viewer shows at a wall-clock instant while simulation steps arrive one by one.
+
+    ``push(frame, arrival_s, tag)`` hands over each step's state as it arrives; ``at(now_s)`` gives the state to
+    show: with ``smooth``, the interpolation from the previous step to the newest one, ``(now_s - arrival) /
+    step_s`` of the way (clamped to the newest: a late step holds the picture, it never extrapolates), so the
+    picture trails the simulation by one step and moves at the wall clock's pace; without it, the newest step.
+    ``tag`` is any integer carried with a step (``cosim drive``: the input event the step has read); ``at``
+    reports the tag of the step it moves towards (``tag_next``) and of the newest step it shows completely
+    (``tag_shown``), so input-to-display latency can be measured at the frame.
+    """
+
+    def __init__(self, step_s: float, smooth: bool = True) -> None:
+        if not step_s > 0:
+            raise ValueError(f"step_s must be > 0, got {step_s}")
+        self.step_s = step_s
+        self.smooth = smooth
+        self._prev: tuple[FrameState, int] | None = None
+        self._cur: tuple[FrameState, int] | None = None
+        self._arrival = 0.0
+        self._interp: Interpolator | None = None
+        self.received = 0
+
+    def push(self, frame: FrameState, arrival_s: float, tag: int = 0) -> None:
+        self._prev, self._cur = self._cur, (frame, int(tag))
+        self._arrival = float(arrival_s)
+        self._interp = (
+            Interpolator(self._prev[0], frame) if (self.smooth and self._prev is not None) else None
+        )
+        self.received += 1
+
+    @property
+    def empty(self) -> bool:
+        return self._cur is None
+
+    def alpha(self, now_s: float) -> float:
+        """How far (0..1) the picture is from the previous step to the newest at ``now_s``."""
+        if self._interp is None:
+            return 1.0
+        return min(1.0, max(0.0, (now_s - self._arrival) / self.step_s))
+
+    def at(self, now_s: float) -> tuple[FrameState, int, int] | None:
+        """(state to show, tag_next, tag_shown), or None before the first step."""
+        if self._cur is None:
+            return None
+        frame, tag = self._cur
+        t = self.alpha(now_s)
+        if self._interp is None or t >= 1.0:
+            return frame, tag, tag
+        return self._interp.at(t), tag, self._prev[1]

@@ -12,7 +12,7 @@ import shapely
 from cosim.world3d import geometry as geo
 from cosim.world3d.hud import LEVEL_COLOURS, HudState, draw_hud
 from cosim.world3d.replay import LogReplay
-from cosim.world3d.state import EgoPose, FrameState, Interpolator, VehicleFrame, VehiclePool
+from cosim.world3d.state import EgoPose, FrameState, Interpolator, Playback, VehicleFrame, VehiclePool
 
 
 def face_normals(mesh: geo.MeshData) -> np.ndarray:
@@ -160,7 +160,10 @@ def test_live_view_never_shows_system_a_in_the_car():
     from cosim.world3d.live import LiveSource
 
     assert inspect.signature(LiveSource).parameters["observer_overlay"].default is False
+    from cosim.world3d import viewer
+
     assert "observer_overlay" not in inspect.getsource(drive)
+    assert "observer_overlay" not in inspect.getsource(viewer)  # the view draws the HudState it is sent
     assert HudState(t_s=0.0, speed_mps=0.0).observer_overlay is False
 
 
@@ -233,3 +236,47 @@ def test_log_replay_keeps_the_last_speed_limit_across_a_junction():
     topics["/ego/state"]["edge"] = np.array(["e1", ":J1_0", "e2"], dtype=object)
     rp = LogReplay(topics, ego_length_m=4.0, lane_speed=lambda e, i: {"e1": 13.89, "e2": 8.33}[e])
     assert [rp.frame_at(t).hud.speed_limit_mps for t in (0.0, 0.1, 0.2)] == [13.89, 13.89, 8.33]
+
+
+def _pose_frame(t: float, x: float) -> FrameState:
+    return FrameState(t, EgoPose(x, 0.0, 0.0), VehicleFrame(("v",), [x + 10.0], [0.0], [0.0], [False]))
+
+
+def test_playback_interpolates_by_the_wall_clock_and_reports_the_input_tags():
+    pb = Playback(step_s=0.1)
+    assert pb.empty and pb.at(5.0) is None
+    pb.push(_pose_frame(1.0, 0.0), arrival_s=10.0, tag=0)
+    frame, tag_next, tag_shown = pb.at(10.05)  # one step only: shown as it is
+    assert frame.ego.x_m == 0.0 and (tag_next, tag_shown) == (0, 0)
+    pb.push(_pose_frame(1.1, 2.0), arrival_s=10.1, tag=3)  # this step read input event 3
+    frame, tag_next, tag_shown = pb.at(10.1)  # just arrived: still the previous step's picture
+    assert frame.ego.x_m == pytest.approx(0.0) and frame.t_s == pytest.approx(1.0)
+    assert (tag_next, tag_shown) == (3, 0)
+    frame, tag_next, tag_shown = pb.at(10.125)  # a quarter of a step later: a quarter of the way
+    assert frame.ego.x_m == pytest.approx(0.5) and frame.vehicles.x_m[0] == pytest.approx(10.5)
+    assert frame.t_s == pytest.approx(1.025) and (tag_next, tag_shown) == (3, 0)
+    frame, tag_next, tag_shown = pb.at(10.9)  # the next step is late: the picture holds, no extrapolation
+    assert frame.ego.x_m == 2.0 and (tag_next, tag_shown) == (3, 3)
+    assert pb.alpha(9.0) == 0.0 and pb.alpha(11.0) == 1.0
+    sharp = Playback(step_s=0.1, smooth=False)  # without smoothing: the newest step at once
+    sharp.push(_pose_frame(1.0, 0.0), 10.0, 0)
+    sharp.push(_pose_frame(1.1, 2.0), 10.1, 1)
+    assert sharp.at(10.1)[0].ego.x_m == 2.0 and sharp.at(10.1)[1:] == (1, 1)
+    with pytest.raises(ValueError):
+        Playback(step_s=0.0)
+
+
+def test_live_source_sends_only_the_nearest_vehicles_to_the_viewer():
+    from types import SimpleNamespace
+
+    from cosim.world3d.live import LiveSource
+
+    n = 6
+    world = SimpleNamespace(valid=np.ones(n, bool), is_ego=np.zeros(n, bool), x_m=np.arange(n) * 100.0,
+                            y_m=np.zeros(n), heading_deg=np.full(n, 90.0), length_m=np.zeros(n),
+                            ids=[f"v{i}" for i in range(n)], signals=np.zeros(n, np.int64))  # fmt: skip
+    src = LiveSource(SimpleNamespace(world=world))
+    assert src.vehicles().ids == tuple(world.ids)
+    # heading 90 (east) and length 0: the centre is the front bumper, at x = 100 i
+    assert src.vehicles((240.0, 0.0), nearest=3).ids == ("v1", "v2", "v3")
+    assert src.vehicles((240.0, 0.0), nearest=3, max_distance_m=100.0).ids == ("v2", "v3")
