@@ -79,6 +79,9 @@ class ChannelParams:
         "free_space"  # see cosim.vanet.pathloss
     )
     antenna_height_m: float = 1.5  # both antennas (two-ray, WINNER+ B1) [m]
+    winner_height_offset_m: float = 1.0  # WINNER+ B1 effective height h - offset (D5.3); 0: h itself [m]
+    winner_min_m: float = 10.0  # WINNER+ B1: shorter distances evaluated here (D5.3 validity: 10 m) [m]
+    winner_free_space_floor: bool = False  # WINNER+ B1: never below free space (Gonzalez-Martin et al. 2019)
     ground_permittivity: float = 1.02  # relative permittivity epsilon_r of the ground, two-ray model
     log_distance_exponent: float = 2.5  # path-loss exponent n, log-distance model
     log_distance_ref_m: float = 1.0  # reference distance d0 [m]
@@ -112,8 +115,10 @@ class ChannelParams:
             raise ValueError(f"channel.path_loss must be one of {', '.join(PATH_LOSS_MODELS)}")
         if not self.antenna_height_m > 0 or not self.ground_permittivity >= 1.0:
             raise ValueError("channel: antenna_height_m must be > 0 and ground_permittivity >= 1")
-        if self.path_loss == "winner_b1" and not self.antenna_height_m > 1.0:
-            raise ValueError("channel: WINNER+ B1 needs antenna_height_m > 1 (effective height h - 1 m)")
+        if self.path_loss == "winner_b1" and not self.antenna_height_m > self.winner_height_offset_m:
+            raise ValueError("channel: WINNER+ B1 needs antenna_height_m > winner_height_offset_m")
+        if self.winner_height_offset_m < 0 or not self.winner_min_m >= 1.0:
+            raise ValueError("channel: winner_height_offset_m must be >= 0 and winner_min_m >= 1 m")
         if not self.log_distance_exponent > 0 or not self.log_distance_ref_m > 0:
             raise ValueError("channel: log_distance_exponent and log_distance_ref_m must be > 0")
         if self.lognormal_sigma_db is not None and not 0 <= self.lognormal_sigma_db <= 20:

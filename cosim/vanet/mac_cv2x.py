@@ -9,6 +9,8 @@ Sources of every rule and constant:
 * Size: a CAM plus ``overhead_bytes`` (52 B: GeoNetworking 40 + BTP 4 + PDCP/RLC/MAC ~8) must fit the
   transport block of its PSSCH RBs (L x 10 - 2) at MCS 7 (QPSK, I_TBS = 7: TS 36.213 Table 8.6.1-1);
   TBS from TS 36.213 Table 7.1.7.2.1-1, row I_TBS 7 (``TBS_ITBS7``). A 190-B CAM (242 B) needs 2 subchannels.
+  MCS 9 (QPSK, I_TBS 9, ``TBS_ITBS9``) is tabulated too: 190 B in 10 RBs (code rate ~0.7), the configuration
+  of Gonzalez-Martin et al. 2019 (``validation/cv2x/``).
 * SB-SPS resource selection (TS 36.213 §14.1.1.6, steps 1-10; TS 36.321 §5.14.1.1): at a CAM arrival n
   the candidates are every L adjacent subchannels in every subframe of [n + T1, n + T2] (T1 = 1, T2 = 100,
   as WiLabV2Xsim's defaults; M_total = 100 x (C - L + 1)); exclude those in subframes the station could not
@@ -29,7 +31,9 @@ Sources of every rule and constant:
   the frame's RBs and I the power of every other transmission of the subframe in the same subchannels
   (interferers below the receiver's interference floor are not in the link budget). The threshold is that
   of MCS 7, not the receiver's (which is the 6-Mb/s OFDM PHY's): Wu et al. 2022 (mac.py) for a 190-B CAM
-  at MCS 7: 2.8 dB (``sinr_threshold_db`` overrides it). The SCI (PSCCH, 2 RBs) is decoded
+  at MCS 7: 2.8 dB (``sinr_threshold_db`` overrides it); or, with ``bler_curve`` ((SINR dB, BLER) points,
+  linear in dB between them), decoded with probability 1 - BLER(SINR) (the MAC's random stream), as
+  link-level curves are used (e.g. 3GPP R1-160284, in Gonzalez-Martin et al. 2019). The SCI (PSCCH, 2 RBs) is decoded
   when its SINR per RB >= ``sci_sinr_threshold_db`` (0 dB, WiLabV2Xsim's minSCIsinr).
 * CBR (TS 36.214 §5.1.30): the share of subchannel-subframes whose S-RSSI exceeds ``cbr_rssi_threshold_dbm``
   (-94 dBm; threshS-RSSI-CBR, TS 36.331: -112..-60 dBm): ``busy_us`` counts 1000 / C us per busy one.
@@ -66,6 +70,13 @@ TBS_ITBS7 = (
     2472, 2536, 2664, 2792, 2984, 3112, 3240, 3368, 3368, 3496, 3624, 3752, 3880, 4008, 4136, 4264, 4392, 4584,
     4584, 4776, 4968, 4968, 5160, 5352, 5352, 5544, 5736, 5736, 5992, 5992, 6200,
 )  # fmt: skip
+# TS 36.213 Table 7.1.7.2.1-1, I_TBS = 9, N_PRB = 1..50 [bits]
+TBS_ITBS9 = (
+    136, 296, 456, 616, 776, 936, 1096, 1256, 1416, 1544, 1736, 1864, 2024, 2216, 2344, 2536, 2664, 2856, 2984,
+    3112, 3368, 3496, 3624, 3752, 4008, 4136, 4264, 4392, 4584, 4776, 4968, 5160, 5160, 5352, 5544, 5736, 5736,
+    5992, 6200, 6200, 6456, 6712, 6712, 6968, 6968, 7224, 7480, 7480, 7736, 7992,
+)  # fmt: skip
+TBS_ROWS = {7: TBS_ITBS7, 9: TBS_ITBS9}  # QPSK MCS (I_TBS = I_MCS for I_MCS <= 10, TS 36.213 Table 8.6.1-1)
 NEVER = -(10**9)  # "long ago" [subframes]
 
 
@@ -75,7 +86,7 @@ class Cv2xParams:
     subchannel_rbs: int = 10  # sizeSubchannel [RB] (TS 36.331)
     pscch_rbs: int = 2  # SCI format 1 on 2 RBs (TS 36.211 §9.4)
     channel_rbs: int = 50  # RBs of a 10-MHz channel
-    mcs: int = 7  # PSSCH MCS (QPSK); only I_TBS 7 is tabulated here
+    mcs: int = 7  # PSSCH MCS (QPSK); I_TBS 7 and 9 are tabulated here (TBS_ROWS)
     overhead_bytes: int = 52  # GN 40 + BTP 4 + PDCP/RLC/MAC headers [B]
     rri_ms: int = 100  # resource reservation interval [ms]
     t1_ms: int = 1  # selection window start (TS 36.213: T1 <= 4)
@@ -91,12 +102,21 @@ class Cv2xParams:
     sci_sinr_threshold_db: float = 0.0  # PSCCH decoding [dB] (WiLabV2Xsim minSCIsinr)
     sinr_threshold_db: float | None = None  # None: Wu et al. 2022 for ref_payload_bytes at MCS 7 (2.8 dB)
     ref_payload_bytes: int = 190
+    bler_curve: tuple[tuple[float, float], ...] | None = None  # ((SINR dB, BLER), ...) replaces it
     cbr_rssi_threshold_dbm: float = -94.0  # threshS-RSSI-CBR (TS 36.331)
     dcc: DccParams = DccParams()
 
     def __post_init__(self) -> None:
-        if self.mcs != 7:
-            raise ValueError("cv2x.mcs: only MCS 7 (I_TBS 7) is tabulated")
+        if self.mcs not in TBS_ROWS:
+            raise ValueError(f"cv2x.mcs: only MCS {', '.join(map(str, TBS_ROWS))} are tabulated")
+        if self.bler_curve is not None:
+            pts = [tuple(map(float, q)) for q in self.bler_curve]
+            s = [q[0] for q in pts]
+            if len(pts) < 2 or any(b <= a for a, b in zip(s[:-1], s[1:], strict=True)):
+                raise ValueError("cv2x.bler_curve: >= 2 (SINR dB, BLER) points, SINR ascending")
+            if any(not 0 <= q[1] <= 1 for q in pts):
+                raise ValueError("cv2x.bler_curve: BLER in [0, 1]")
+            object.__setattr__(self, "bler_curve", tuple(pts))
         if self.n_subchannels < 1 or self.subchannel_rbs <= self.pscch_rbs:
             raise ValueError("cv2x: need n_subchannels >= 1 and subchannel_rbs > pscch_rbs")
         if self.n_subchannels * self.subchannel_rbs > self.channel_rbs:
@@ -113,7 +133,7 @@ class Cv2xParams:
     def subchannels_for(self, payload_bytes) -> np.ndarray:
         """Subchannels a CAM of ``payload_bytes`` (array) needs (0 = too large for the pool)."""
         bits = 8 * (np.asarray(payload_bytes, dtype=np.int64) + self.overhead_bytes)
-        tbs = np.asarray(TBS_ITBS7)
+        tbs = np.asarray(TBS_ROWS[self.mcs])
         need = np.zeros(bits.shape, dtype=np.int64)
         for L in range(self.n_subchannels, 0, -1):
             prb = min(L * self.subchannel_rbs - self.pscch_rbs, tbs.size)
@@ -125,7 +145,7 @@ class Cv2xParams:
         if self.sinr_threshold_db is not None:
             return float(self.sinr_threshold_db)
         bits = 8 * (self.ref_payload_bytes + self.overhead_bytes)
-        prb = int(np.searchsorted(np.asarray(TBS_ITBS7), bits)) + 1  # fewest PRBs whose TBS holds it
+        prb = int(np.searchsorted(np.asarray(TBS_ROWS[self.mcs]), bits)) + 1  # fewest PRBs whose TBS holds it
         return shannon_sinr_threshold_db(bits, 1e-3, prb * 10e6 / self.channel_rbs)  # RB = 200 kHz of 10 MHz
 
 
@@ -174,9 +194,10 @@ class MacCv2x(StationArrays):
             self.start(st[~self.alive[st]], inp.t0_us, inp.dt_us)
         import dataclasses
 
-        # the shared receiver with MCS 7's threshold (a PER curve given for the OFDM PHY does not apply)
+        # the shared receiver with the MCS's threshold or BLER curve (a PER curve given for the OFDM PHY does
+        # not apply)
         self._rx = dataclasses.replace(
-            receiver_of(inp), capture_threshold_db=float(p.sinr_min_db), per_curve=None
+            receiver_of(inp), capture_threshold_db=float(p.sinr_min_db), per_curve=p.bler_curve
         )
         if inp.t0_us % 1000 or inp.dt_us % 1000:
             raise ValueError("cv2x: the base step must be whole milliseconds")
@@ -360,6 +381,11 @@ class MacCv2x(StationArrays):
                 self.stats["threshold_raises"] += 1
             cand = np.flatnonzero(~excl.reshape(-1))
             n_b = max(int(np.ceil(p.candidate_ratio * m_total)), 1)
+            # equal S-RSSI (above all resources nobody in range used: a UE measures them all at its noise
+            # floor) ranks in random order: a stable sort would hand every station the earliest such subframes
+            # after its CAM, so neighbours selecting at nearly the same time pick from the same few (validation
+            # against Gonzalez-Martin et al. 2019, validation/cv2x/: half of S_B were such ties at 100 veh/km)
+            cand = cand[self.rng.permutation(cand.size)]
             best = cand[np.argsort(E.reshape(-1)[cand], kind="stable")[:n_b]]
             pick = int(best[int(self.rng.integers(0, best.size))])
             o, x = divmod(pick, nx)
@@ -427,7 +453,7 @@ class MacCv2x(StationArrays):
         outcome = np.full(ti.size, OK, dtype=np.uint8)
         # S / (N_band + I) by the receiver's rule: scaled by N_full / N_band, its noise is the full floor
         scale = (p.channel_rbs / (L * rbs))[ti]
-        ok = capture(mw[ti, ri] * scale, interf[ti, ri] * scale, rx)[1]
+        ok = capture(mw[ti, ri] * scale, interf[ti, ri] * scale, rx, self.rng if p.bler_curve else None)[1]
         outcome[~ok] = DAMAGED
         outcome[hd[ti, ri]] = HALF_DUPLEX
         ab = above[ti, ri]

@@ -14,6 +14,11 @@ fc the carrier [GHz] unless said otherwise:
   LOS: 22.7 log10(d) + 27.0 + 20 log10(fc) for d <= d'BP, and
   40 log10(d) + 7.56 - 17.3 log10(h'1) - 17.3 log10(h'2) + 2.7 log10(fc) beyond,
   d'BP = 4 h'1 h'2 f / c (f in Hz); valid from 10 m (shorter distances are evaluated at 10 m).
+  Three options (``ChannelParams.winner_*``) give the variant other V2V studies use: the height offset
+  (``winner_height_offset_m``, 1 m; 0 takes the antennas' own heights, breakpoint 177 m at 5.9 GHz), the
+  shortest distance evaluated (``winner_min_m``, 10 m) and a free-space floor (``winner_free_space_floor``:
+  max(PL, Friis)). Gonzalez-Martin et al., IEEE TVT 68(2), 2019 (their C-V2X mode 4 model, the reference of
+  ``validation/cv2x/``) use offset 0, 3 m and the floor.
   NLOS (Manhattan grid, the receiver round a corner, d1 and d2 the legs along the two streets):
   min(PL(d1, d2), PL(d2, d1)), PL(dk, dl) = PL_LOS(dk) + 20 - 12.5 nj + 10 nj log10(dl) + 3 log10(fc / 5),
   nj = max(2.8 - 0.0024 dk, 1.84) (WINNER II D1.1.2 Table 4-4, kept in WINNER+). Without street geometry
@@ -59,17 +64,29 @@ def free_space_db(d_m, frequency_hz: float) -> np.ndarray:
     return 20.0 * np.log10(4.0 * np.pi * d / lam)
 
 
-def winner_b1_los_db(d_m, frequency_hz: float, h1_m: float = 1.5, h2_m: float = 1.5) -> np.ndarray:
-    """WINNER+ B1 LOS [dB] (D5.3 Table 4-4): two slopes around the breakpoint d'BP = 4 h'1 h'2 f / c."""
+def winner_b1_los_db(
+    d_m,
+    frequency_hz: float,
+    h1_m: float = 1.5,
+    h2_m: float = 1.5,
+    height_offset_m: float = WINNER_EFFECTIVE_HEIGHT_OFFSET_M,
+    min_m: float = WINNER_B1_MIN_M,
+    free_space_floor: bool = False,
+) -> np.ndarray:
+    """WINNER+ B1 LOS [dB] (D5.3 Table 4-4): two slopes around the breakpoint d'BP = 4 h'1 h'2 f / c,
+    h' = h - height_offset_m; distances below min_m evaluated at min_m; optionally never below free space."""
     fc = frequency_hz / 1e9
-    h1, h2 = h1_m - WINNER_EFFECTIVE_HEIGHT_OFFSET_M, h2_m - WINNER_EFFECTIVE_HEIGHT_OFFSET_M
+    h1, h2 = h1_m - height_offset_m, h2_m - height_offset_m
     if h1 <= 0 or h2 <= 0:
-        raise ValueError("WINNER+ B1 needs antennas higher than 1 m (effective height h - 1 m > 0)")
+        raise ValueError(
+            f"WINNER+ B1 needs antennas higher than {height_offset_m:g} m (effective height > 0)"
+        )
     d_bp = 4.0 * h1 * h2 * frequency_hz / SPEED_OF_LIGHT_MPS
-    d = np.maximum(np.asarray(d_m, dtype=np.float64), WINNER_B1_MIN_M)
+    d = np.maximum(np.asarray(d_m, dtype=np.float64), min_m)
     near = 22.7 * np.log10(d) + 27.0 + 20.0 * math.log10(fc)
     far = 40.0 * np.log10(d) + 7.56 - 17.3 * math.log10(h1) - 17.3 * math.log10(h2) + 2.7 * math.log10(fc)
-    return np.where(d <= d_bp, near, far)
+    pl = np.where(d <= d_bp, near, far)
+    return np.maximum(pl, free_space_db(d, frequency_hz)) if free_space_floor else pl
 
 
 def winner_b1_nlos_db(d1_m, d2_m, frequency_hz: float, h1_m: float = 1.5, h2_m: float = 1.5) -> np.ndarray:
@@ -153,7 +170,16 @@ class PathLoss:
             beyond = self.free_space_db(d0) + 10.0 * p.log_distance_exponent * np.log10(d / d0)
             return np.where(d > d0, beyond, self.free_space_db(d))
         if p.path_loss == "winner_b1":
-            return winner_b1_los_db(d, f, p.antenna_height_m, p.antenna_height_m)
+            h = p.antenna_height_m
+            return winner_b1_los_db(
+                d,
+                f,
+                h,
+                h,
+                getattr(p, "winner_height_offset_m", WINNER_EFFECTIVE_HEIGHT_OFFSET_M),
+                getattr(p, "winner_min_m", WINNER_B1_MIN_M),
+                getattr(p, "winner_free_space_floor", False),
+            )
         if p.path_loss == "3gpp_highway":
             return tr37885_highway_los_db(d, f)
         if p.path_loss == "3gpp_urban":

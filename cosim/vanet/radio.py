@@ -81,6 +81,10 @@ class RadioScenario:
     duration_s: float = 30.0
     warmup_s: float = 10.0
     seed: int = 1
+    # further ChannelParams fields (e.g. the receiver's sensitivity, WINNER+ B1 options) and the MAC's own
+    # parameters (Cv2xParams / Mac80211pParams fields), for calibrations against references (Python API only)
+    channel_params: dict | None = None
+    mac_params: dict | None = None
 
     def __post_init__(self) -> None:
         if self.mac not in MACS:
@@ -126,12 +130,15 @@ class RadioScenario:
 
     def channel(self) -> ChannelParams:
         return ChannelParams(
-            tx_power_mw=10.0 ** (self.tx_dbm / 10.0),
-            path_loss=PATHLOSS_NAMES[self.pathloss],
-            lognormal_sigma_db=self.shadowing_db,
-            shadowing="none",
-            noise_dbm=self.noise_dbm,
-            cs_threshold_dbm=self.cs_dbm,
+            **{
+                "tx_power_mw": 10.0 ** (self.tx_dbm / 10.0),
+                "path_loss": PATHLOSS_NAMES[self.pathloss],
+                "lognormal_sigma_db": self.shadowing_db,
+                "shadowing": "none",
+                "noise_dbm": self.noise_dbm,
+                "cs_threshold_dbm": self.cs_dbm,
+                **(self.channel_params or {}),
+            }
         )
 
 
@@ -141,7 +148,7 @@ class SotdmaRadioMac:
     has_slots = True
 
     def __init__(self, sc: RadioScenario, n: int, rng: np.random.Generator):
-        self.p = SotdmaParams()
+        self.p = SotdmaParams(**(sc.mac_params or {}))
         self.frame_us, self.slot_us, self.n_slots = self.p.frame_layout(sc.size_bytes)
         self.mac = SotdmaMac(self.p, self.n_slots, n, rng)
         self.air_us = float(self.p.air_times_us(np.array([sc.size_bytes]))[0])

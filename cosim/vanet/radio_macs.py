@@ -44,7 +44,7 @@ class InterfaceRadioMac:
     def __init__(self, sc, n: int, rng: np.random.Generator):
         self.sc = sc
         self.n = n
-        self.mac = self.mac_cls(self.params_cls(), n, rng)
+        self.mac = self.mac_cls(self.params_cls(**(sc.mac_params or {})), n, rng)
         self.started = np.zeros(n, dtype=bool)
         self.held_gen = np.full(n, -1, dtype=np.int64)
         self._tx_held = None
