@@ -118,14 +118,6 @@ class SumoBridge:
             self.open = False
             self._sumo.close()
 
-    @property
-    def sumo(self):
-        """Deprecated alias of the private backend handle, kept only for this class's own right-of-way and
-        lead methods from ``divert`` on (issue 15 is changing them at the time of writing; they move to
-        ``_sumo`` with it). Nothing outside ``cosim.sumo_bridge`` may use it: the phases get named
-        operations (tests/unit/test_import_graph.py checks)."""
-        return self._sumo
-
     # -- stepping --------------------------------------------------------------------------------------------
     def step(self, world: World) -> list[SumoEvent]:
         """Advance SUMO one step and refresh ``world`` in place; returns the step's traffic events."""
@@ -360,7 +352,7 @@ class SumoBridge:
         one of its lanes leads onto another road (never a U-turn), then on along that road for about
         ``continue_m`` (straight on where it can, still off ``keep_off``). Returns the edge it turns onto,
         or None when it already leaves ``keep_off`` within that stretch or no junction offers a way out."""
-        veh, lane_api = self.sumo.vehicle, self.sumo.lane
+        veh, lane_api = self._sumo.vehicle, self._sumo.lane
         try:
             route, i = list(veh.getRoute(vid)), veh.getRouteIndex(vid)
             lane, pos = veh.getLaneID(vid), veh.getLanePosition(vid)
@@ -396,13 +388,13 @@ class SumoBridge:
         """Edges a passenger car can reach from ``edge`` at its end junction, outside ``avoid``, no U-turns,
         ordered by the directions in ``prefer`` (r right, l left, s straight)."""
         found: dict[str, int] = {}
-        for n in range(self.sumo.edge.getLaneNumber(edge)):
+        for n in range(self._sumo.edge.getLaneNumber(edge)):
             # link tuples: (toLane, hasPrio, isOpen, hasFoe, via, state, direction, length)
-            for link in self.sumo.lane.getLinks(f"{edge}_{n}"):
+            for link in self._sumo.lane.getLinks(f"{edge}_{n}"):
                 to, direction = link[0].rsplit("_", 1)[0], link[6].lower()
                 if to in avoid or direction in ("t", "invalid") or to.startswith(":"):
                     continue
-                allowed = self.sumo.lane.getAllowed(link[0])
+                allowed = self._sumo.lane.getAllowed(link[0])
                 if allowed and "passenger" not in allowed:
                     continue
                 rank = prefer.find(direction[0]) if direction[0] in prefer else len(prefer)
@@ -411,34 +403,34 @@ class SumoBridge:
 
     def route_ahead(self, vid: str) -> list[str]:
         """The edges of the route SUMO holds for ``vid`` from the one it is on to the end."""
-        veh = self.sumo.vehicle
+        veh = self._sumo.vehicle
         return list(veh.getRoute(vid)[max(veh.getRouteIndex(vid), 0) :])
 
     def edges_left(self, vid: str) -> int:
         """Edges of the route SUMO holds for ``vid`` from the one it is on (or has just left) to the end."""
-        veh = self.sumo.vehicle
+        veh = self._sumo.vehicle
         return len(veh.getRoute(vid)) - veh.getRouteIndex(vid)
 
     def cap_speed(self, vid: str, speed_mps: float | None) -> None:
         """Limit a SUMO-driven vehicle's speed (its car following and right of way still apply); None gives
         it back to SUMO's own driving."""
-        self.sumo.vehicle.setSpeed(vid, -1.0 if speed_mps is None else max(0.0, speed_mps))
+        self._sumo.vehicle.setSpeed(vid, -1.0 if speed_mps is None else max(0.0, speed_mps))
 
     def lane_speed_limit(self, vid: str) -> float:
         """The speed the vehicle may drive on its lane (limit x its speed factor) [m/s]."""
-        return self.sumo.vehicle.getAllowedSpeed(vid)
+        return self._sumo.vehicle.getAllowedSpeed(vid)
 
     def tls_green_left_s(self, tls_id: str, link_index: int) -> float:
         """How long the light's link stays green (G or g) from now [s] following its programme (0 when it is
         not green now; inf when it never changes)."""
-        tl = self.sumo.trafficlight
+        tl = self._sumo.trafficlight
         logic = self._tls_logic(tls_id, tl.getProgram(tls_id))
         if logic is None:
             return math.inf
         phase = tl.getPhase(tls_id)
         if logic[phase][1][link_index] not in "Gg":
             return 0.0
-        left = tl.getNextSwitch(tls_id) - self.sumo.simulation.getTime()
+        left = tl.getNextSwitch(tls_id) - self._sumo.simulation.getTime()
         for k in range(1, len(logic)):
             duration, state = logic[(phase + k) % len(logic)]
             if state[link_index] not in "Gg":
@@ -449,39 +441,39 @@ class SumoBridge:
     def _tls_logic(self, tls_id: str, program: str) -> list[tuple[float, str]] | None:
         key = (tls_id, program)
         if key not in self._tls_logics:
-            logic = next((lg for lg in self.sumo.trafficlight.getAllProgramLogics(tls_id) if lg.programID == program),
+            logic = next((lg for lg in self._sumo.trafficlight.getAllProgramLogics(tls_id) if lg.programID == program),
                          None)  # fmt: skip
             self._tls_logics[key] = [(p.duration, p.state) for p in logic.phases] if logic else None
         return self._tls_logics[key]
 
     def min_gap(self, vid: str) -> float:
         """SUMO's getLeader distance excludes the follower's minGap; add this for the bumper gap [m]."""
-        return self.sumo.vehicle.getMinGap(vid)
+        return self._sumo.vehicle.getMinGap(vid)
 
     def leader(self, vid: str, distance_m: float = 200.0) -> tuple[str, float] | None:
-        res = self.sumo.vehicle.getLeader(vid, distance_m)
+        res = self._sumo.vehicle.getLeader(vid, distance_m)
         return (res[0], res[1]) if res and res[0] else None
 
     def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None:
         """(id, bumper gap [m]) of the vehicle following ``vid`` in its lane within ``distance_m``."""
-        res = self.sumo.vehicle.getFollower(vid, distance_m)
-        return (res[0], res[1] + self.sumo.vehicle.getMinGap(res[0])) if res and res[0] else None
+        res = self._sumo.vehicle.getFollower(vid, distance_m)
+        return (res[0], res[1] + self._sumo.vehicle.getMinGap(res[0])) if res and res[0] else None
 
     def find_route(self, origin: str, destination: str) -> list[str]:
         """SUMO's fastest route (the run's routing algorithm: A*) from edge to edge; [] when there is none."""
         try:
-            return list(self.sumo.simulation.findRoute(origin, destination, vType="DEFAULT_VEHTYPE").edges)
+            return list(self._sumo.simulation.findRoute(origin, destination, vType="DEFAULT_VEHTYPE").edges)
         except Exception:  # libsumo.TraCIException: unknown or unreachable edge
             return []
 
     def vehicle_ids(self) -> list[str]:
-        return list(self.sumo.vehicle.getIDList())
+        return list(self._sumo.vehicle.getIDList())
 
     def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float, float, bool]]:
         """(foe id, the ego's distance to the conflict, the foe's [m], how long the foe has been standing [s],
         whether something holds the foe back: a car right ahead of it or a closed link) for the vehicles
         ``vid`` must yield to at the junctions within ``lookahead_m`` on its route (SUMO's right of way)."""
-        veh = self.sumo.vehicle
+        veh = self._sumo.vehicle
         foes = veh.getJunctionFoes(vid, lookahead_m)
         # tuples: (foeId, egoDist, foeDist, egoExitDist, foeExitDist, egoLane, foeLane, egoResponse, foeResponse)
         out = []
@@ -495,7 +487,7 @@ class SumoBridge:
     def _held_back(self, vid: str) -> bool:
         """A standing vehicle that cannot go now: a car within HELD_BACK_GAP_M ahead of it, or its next link
         closed (red, or yielding itself). One standing first in line at an open link may start any moment."""
-        veh = self.sumo.vehicle
+        veh = self._sumo.vehicle
         ahead = veh.getLeader(vid, HELD_BACK_GAP_M)
         if ahead and ahead[0]:
             return True
@@ -505,7 +497,7 @@ class SumoBridge:
     def next_link(self, vid: str) -> tuple[str, float, str] | None:
         """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None
         inside a junction or at the end of its route."""
-        veh = self.sumo.vehicle
+        veh = self._sumo.vehicle
         lane = veh.getLaneID(vid)
         if not lane or lane.startswith(":"):
             return None
@@ -514,9 +506,9 @@ class SumoBridge:
             return None
         # (approachedLane, hasPrio, isOpen, hasFoe, approachedInternal, state, direction, length)
         first = links[0]
-        return first[5], self.sumo.lane.getLength(lane) - veh.getLanePosition(vid), first[6]
+        return first[5], self._sumo.lane.getLength(lane) - veh.getLanePosition(vid), first[6]
 
     def next_tls(self, vid: str) -> tuple[str, int, float, str] | None:
         """(tls id, link index, distance to the stop line [m], state char) of the next light, if any."""
-        nxt = self.sumo.vehicle.getNextTLS(vid)
+        nxt = self._sumo.vehicle.getNextTLS(vid)
         return tuple(nxt[0]) if nxt else None
