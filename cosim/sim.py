@@ -124,14 +124,13 @@ class Simulation:
             if config.ego.enabled:
                 self._setup_ego()
                 if config.ego.physics == "mujoco":
-                    from cosim.phases.ego import EgoController
-
-                    self.ego = EgoController(self)
+                    self.ego = self._ego_controller()
                 from cosim.phases.adas import AdasPhase
                 from cosim.phases.lead import LeadVehicle
 
                 if config.ego.lead_vehicle:
-                    self.lead = LeadVehicle(self, config.ego.lead_waits_beyond_m)
+                    self.lead = LeadVehicle(config.ego.lead_waits_beyond_m, bridge=self.bridge, ego=self.ego,
+                                            emit=self._emit)  # fmt: skip
 
                 self.adas = AdasPhase(config.adas, self.buildings, stream(config.seed, "system_a"), self.bridge,
                                       self.vanet)  # fmt: skip
@@ -151,7 +150,8 @@ class Simulation:
             if self.mcap is not None:
                 from cosim.log.recorder import Recorder
 
-                self.recorder = Recorder(self)
+                self.recorder = Recorder(self.mcap, config.log, bridge=self.bridge, scenario_dir=self.scenario.dir,
+                                         network=lambda: self.net, health=self.health is not None)  # fmt: skip
             self.schedule = self._build_schedule()
         except BaseException:
             self.close()
@@ -203,6 +203,18 @@ class Simulation:
                                   emit=self._emit, lead=bool(ego.lead_vehicle))  # fmt: skip
         if ego.depart_s == 0:
             self._place_ego()
+
+    def _ego_controller(self):
+        """The ego's phase: the MuJoCo car, its driver and their ports."""
+        from cosim.driver.route import RoutePath
+        from cosim.ego_mujoco import EgoCar
+        from cosim.phases.ego import EgoController
+
+        ego = self.config.ego
+        return EgoController(ego, car=EgoCar(ego.car, timestep_s=self.config.timing.physics_timestep_s),
+                             rng=stream(self.config.seed, "driver", ego.driver_seed), route=self.ego_route,
+                             path_of=lambda edges: RoutePath.from_network(self.net, edges), extension=self.route,
+                             bridge=self.bridge, step_s=self.step_s, emit=self._emit)  # fmt: skip
 
     def _place_ego(self) -> None:
         self._placed = True
@@ -267,25 +279,40 @@ class Simulation:
                 ("sumo", self._start)
             )  # ... the ego and the lead placed when due, their start kept clear
         if self.ego is not None:
-            s.append(("sumo", self.ego.own_state))  # ... the ego's speed and acceleration are MuJoCo's
+            s.append(("sumo", self._ego_own_state))  # ... the ego's speed and acceleration are MuJoCo's
         if self.vanet is not None:  # vanet: CAMs, medium access, the aether, the OBUs
             s.append(("vanet", self._vanet_step))
         if self.adas is not None:  # adas: systems A and B on what the ego could know
             s.append(("adas", self._adas_step))
         if self.ego is not None:  # driver: the ego's driver decides ...
-            s.append(("driver", self.ego.drive))
+            s.append(("driver", self._ego_drive))
         if self.lead is not None:  # ... and the lead car adapts to the ego
-            s.append(("driver", self.lead.step))
+            s.append(("driver", self._lead_step))
         if self.ego is not None:
-            s.append(("ego", self.ego.integrate))  # ego: MuJoCo integrates the car over the SUMO step
-            s.append(("writeback", self.ego.write_back))  # writeback: the ego's pose into SUMO
+            s.append(("ego", self._ego_integrate))  # ego: MuJoCo integrates the car over the SUMO step
+            s.append(("writeback", self._ego_write_back))  # writeback: the ego's pose into SUMO
         if self.traffic is not None:
             s.append(("writeback", self._traffic_step))  # SCVs generated and removed around the ego
         if self.health is not None:
             s.append(("writeback", self._health_step))  # the run's own health record
         if self.recorder is not None:
-            s.append(("log", self.recorder))  # log: the step into the MCAP file
+            s.append(("log", self._log_step))  # log: the step into the MCAP file
         return s
+
+    def _ego_own_state(self, sim) -> None:
+        self.ego.own_state(self.world)
+
+    def _ego_drive(self, sim) -> None:
+        self.ego.step(self.world, self.current.adas_displays)
+
+    def _lead_step(self, sim) -> None:
+        self.lead.step(self.world)
+
+    def _ego_integrate(self, sim) -> None:
+        self.ego.integrate()
+
+    def _ego_write_back(self, sim) -> None:
+        self.current.ego_log = self.ego.write_back(self.world)
 
     def _vanet_step(self, sim) -> None:
         self.current.vanet, topics = self.vanet.step(self.world, self.step_s)
@@ -311,6 +338,9 @@ class Simulation:
         percept = getattr(ego, "percept", None)
         self.events += self.health.step(self.world, self.events, percept,
                                         lambda: getattr(getattr(getattr(ego, "driver", None), "debug", None), "mode", ""))  # fmt: skip
+
+    def _log_step(self, sim) -> None:
+        self.recorder.step(self.world, self.outputs, self.events)
 
     def _emit(self, event: SumoEvent) -> None:
         """Add an event to this step's (for phases given ``emit`` as a port)."""
@@ -377,7 +407,8 @@ class Simulation:
             return
         self.closed = True
         try:
-            for phase in (self.traffic, self.route, self.adas, self.vanet):
+            phases = (self.traffic, self.lead, self.ego, self.route, self.adas, self.vanet, self.recorder)
+            for phase in phases:
                 if phase is not None:
                     phase.close()
             if self.mcap is not None:

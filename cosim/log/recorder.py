@@ -9,12 +9,18 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 
 from cosim.log.map_scene import map_scene_update, signal_lamps
 from cosim.log.schemas import TOPIC_SCHEMAS
-from cosim.world import EGO_ID
+from cosim.log.writer import McapLog
+from cosim.outputs import StepOutputs
+from cosim.runconfig import LogConfig
+from cosim.world import EGO_ID, SumoEvent, World
 
 
 def _r(a: np.ndarray, nd: int) -> list:
@@ -22,28 +28,45 @@ def _r(a: np.ndarray, nd: int) -> list:
     return np.round(a, nd).tolist()
 
 
+class LogBridge(Protocol):
+    """What the log reads of SUMO beyond the snapshot (``cosim.sumo_bridge.SumoBridge`` provides it)."""
+
+    ego_on_road: bool
+
+    def traffic_lights(self) -> tuple[list[str], list[str]]: ...
+
+
 class Recorder:
-    def __init__(self, sim):
-        self.sim = sim
-        self.log = sim.mcap
-        self.cfg = sim.config.log
+    """The log phase. Ports: the MCAP writer (``log``), its config,
+    SUMO's light states and the ego's on-road verdict (``bridge``), the scenario's folder (for ``/map``),
+    the read-only network view (``network``, called only when the scene is on: the signal lamps) and whether
+    the run writes ``/health`` when it closes. ``step`` is given the snapshot, the phases' outputs of the
+    step and its events."""
+
+    def __init__(self, log: McapLog, config: LogConfig, *, bridge: LogBridge, scenario_dir: str | Path,
+                 network: Callable[[], Any], health: bool):  # fmt: skip
+        self.log = log
+        self.cfg = config
+        self.bridge = bridge
         self._tls_state: dict[str, str] = {}
         self._channels: set[str] = set()
-        if getattr(sim, "health", None) is not None:  # cosim.sim writes /health itself, when the run closes
+        if health:  # cosim.sim writes /health itself, when the run closes
             self._channel("/health")
         self._lamps: list[tuple[str, int, np.ndarray]] = []
         if self.cfg.scene_every_steps:
             self._channel("/map")
-            self.log.write_deferred("/map", 0.0, map_scene_update, str(sim.scenario.dir))
-            self._lamps = signal_lamps(sim.net)  # the lamps /scene lights (the poles are on /map)
+            self.log.write_deferred("/map", 0.0, map_scene_update, str(scenario_dir))
+            self._lamps = signal_lamps(network())  # the lamps /scene lights (the poles are on /map)
 
     def _channel(self, topic: str) -> None:
         """Register ``topic`` with its declared schema before its first message."""
         self._channels.add(topic)
         self.log.channel(topic, TOPIC_SCHEMAS.get(topic))
 
-    def __call__(self, sim) -> None:
-        w, t, step, log = sim.world, sim.world.t_s, sim.world.step, self.log
+    def step(self, w: World, outputs: StepOutputs, events: Sequence[SumoEvent]) -> None:
+        """The step into the log: the ego, the traffic, the lights, the events, the phases' messages and the
+        Foxglove scene."""
+        t, step, log = w.t_s, w.step, self.log
         ego = w.ego_slot
         if ego >= 0:
             msg = {
@@ -53,9 +76,9 @@ class Recorder:
                 "edge": w.edge_names[w.edge_code[ego]] if w.edge_code[ego] >= 0 else "",
                 "lane_index": int(w.lane_index[ego]), "lane_pos_m": round(float(w.lane_pos_m[ego]), 3),
                 "lateral_offset_m": round(float(w.lateral_offset_m[ego]), 3),
-                "on_road": bool(sim.bridge.ego_on_road),
+                "on_road": bool(self.bridge.ego_on_road),
             }  # fmt: skip
-            msg.update(sim.outputs.ego_log)
+            msg.update(outputs.ego_log)
             if "/ego/state" not in self._channels:
                 self._channel("/ego/state")
             log.write("/ego/state", t, msg)
@@ -73,7 +96,7 @@ class Recorder:
                                w.x_m[idx], w.y_m[idx], w.heading_deg[idx], w.speed_mps[idx], w.accel_mps2[idx],
                                [names[c] if c >= 0 else "" for c in w.edge_code[idx].tolist()], w.lane_index[idx],
                                w.signals[idx])  # fmt: skip
-        ids, states = sim.bridge.traffic_lights()
+        ids, states = self.bridge.traffic_lights()
         changed = [(i, s) for i, s in zip(ids, states, strict=True) if self._tls_state.get(i) != s]
         if changed:
             self._tls_state.update(changed)
@@ -81,12 +104,12 @@ class Recorder:
                 self._channel("/traffic/lights")
             log.write("/traffic/lights", t, {"t_s": t, "step": step, "id": [c[0] for c in changed],
                                              "state": [c[1] for c in changed]})  # fmt: skip
-        for ev in sim.events:
+        for ev in events:
             if "/events" not in self._channels:
                 self._channel("/events")
             log.write("/events", t, {"t_s": t, "step": step, "kind": ev.kind, "vehicle": ev.vehicle,
                                      "detail": ev.detail, "value": ev.value})  # fmt: skip
-        for topic, msg in sim.outputs.log.items():  # other phases' (/vanet/*, /adas/*, ...)
+        for topic, msg in outputs.log.items():  # other phases' (/vanet/*, /adas/*, ...)
             if topic not in self._channels:
                 self._channel(topic)
             log.write(topic, t, msg)
@@ -109,6 +132,9 @@ class Recorder:
                     lamps.append((pos[_LAMP_SLOT[lamp]], lamp))
             log.write_deferred("/scene", t, _scene, t, [w.ids[i] for i in idx.tolist()], cx[idx], cy[idx],
                                w.heading_deg[idx], w.length_m[idx], w.width_m[idx], w.is_ego[idx], lamps)  # fmt: skip
+
+    def close(self) -> None:
+        pass  # the writer is the run's (cosim.sim closes it after writing /health)
 
 
 def _ego_frame(t: float, w, ego: int) -> dict:

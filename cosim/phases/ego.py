@@ -1,14 +1,18 @@
 """The ego in the loop: what its driver perceives, how MuJoCo moves it, and its write-back into SUMO.
 
-Hooks (ARCHITECTURE.md phase order): ``driver`` builds the Percept from the snapshot and SUMO's view of
-the ego (leader, next light), and asks the driver; ``ego`` integrates the MuJoCo car for one SUMO step;
-``writeback`` places the ego in SUMO (moveToXY + speed) for the next step.
+Its entries in the schedule (``cosim.sim``, ARCHITECTURE.md phase order): in ``sumo`` the ego's speed and
+acceleration in the snapshot become the physics' (``own_state``); ``driver`` builds the Percept from the
+snapshot and SUMO's view of the ego (next light, right of way) and asks the driver (``step``); ``ego``
+integrates the car for one SUMO step (``integrate``); ``writeback`` places the ego in SUMO (moveToXY +
+speed) for the next step (``write_back``).
 """
 
 from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 
@@ -16,8 +20,10 @@ from cosim import frames
 from cosim.driver import Controls, Percept, make_driver
 from cosim.driver.gap_acceptance import arrival_time_s, movement_of
 from cosim.driver.route import RoutePath
-from cosim.seeds import stream
-from cosim.world import EGO_ID, SumoEvent
+from cosim.ego_mujoco.params import CarParams
+from cosim.ego_mujoco.state import EgoState
+from cosim.runconfig import EgoConfig
+from cosim.world import EGO_ID, SumoEvent, World
 
 PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
@@ -48,12 +54,49 @@ _TLS = {"g": "g", "G": "g", "y": "y", "Y": "y", "u": "y", "r": "r", "R": "r", "s
 _TLS_YIELD = "g"
 
 
-def priority_gap_s(sim, vid: str, line_dist_m: float) -> float:
+class FoesBridge(Protocol):
+    """SUMO's right of way at the next junctions (``cosim.sumo_bridge.SumoBridge`` provides it)."""
+
+    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float, float, bool]]: ...
+
+
+class EgoBridge(FoesBridge, Protocol):
+    """What the ego's phase asks SUMO and writes into it (``cosim.sumo_bridge.SumoBridge`` provides it)."""
+
+    def next_tls(self, vid: str) -> tuple[str, int, float, str] | None: ...
+
+    def edges_left(self, vid: str) -> int: ...
+
+    def set_ego_route(self, edges: list[str]) -> SumoEvent | None: ...
+
+    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, *,
+                  verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
+
+
+class EgoPhysics(Protocol):
+    """The car the driver drives (``cosim.ego_mujoco.EgoCar``; a unit test may give a kinematic one)."""
+
+    params: CarParams
+
+    def reset(self, x_m: float, y_m: float, yaw_rad: float, speed_mps: float = 0.0) -> None: ...
+
+    def step(self, throttle: float, brake: float, steer: float, duration_s: float) -> EgoState: ...
+
+    def state(self) -> EgoState: ...
+
+
+class RouteExtension(Protocol):
+    """The route's extension (``cosim.phases.route.EgoRoute``): True when it appended edges."""
+
+    def extend_if_short(self, ahead_m: float) -> bool: ...
+
+
+def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: float) -> float:
     """Time until the first vehicle ``vid`` must yield to at its next junction reaches the conflict [s]
     (SUMO's right of way; inf: none within FOE_RADIUS_M)."""
-    w = sim.world
+    w = world
     gap = math.inf
-    for foe, _, foe_dist, standing_s, held_back in sim.bridge.yield_foes(vid, line_dist_m + 5.0):
+    for foe, _, foe_dist, standing_s, held_back in bridge.yield_foes(vid, line_dist_m + 5.0):
         slot = w.slot_of.get(foe)
         if slot is None or foe_dist > FOE_RADIUS_M or (standing_s >= FOE_WAITING_S and held_back):
             continue
@@ -62,18 +105,29 @@ def priority_gap_s(sim, vid: str, line_dist_m: float) -> float:
 
 
 class EgoController:
-    """Owns the MuJoCo car and the driver; plugs into the driver / ego / writeback phases."""
+    """Owns the car and the driver; plugs into the sumo / driver / ego / writeback phases.
 
-    def __init__(self, sim):
-        from cosim.ego_mujoco import EgoCar
+    Ports: its config (the driver and the car's steering geometry), the car (``car``: MuJoCo's
+    ``EgoCar`` in a run), the driver's random stream (``cosim.seeds`` "driver" + ``driver_seed``), the
+    route's edge list (shared with ``cosim.phases.route``, which extends it in place) and ``path_of``, which
+    turns edges into route geometry (``RoutePath`` from the read-only network view), the route extension
+    (None: the route is fixed), SUMO's operations for the ego (``bridge``), the step length and ``emit``
+    for its events of the step. Each entry point is given the snapshot; ``step`` also the assistance
+    systems' displays (Percept kwargs). ``write_back`` returns the ego's additions to /ego/state."""
 
-        self.sim = sim
-        cfg = sim.config.ego
-        self.car = EgoCar(cfg.car, timestep_s=sim.config.timing.physics_timestep_s)
-        self.path = RoutePath.from_network(sim.net, sim.ego_route)
-        p = cfg.car
-        self.driver = make_driver(cfg.driver, stream(sim.config.seed, "driver", cfg.driver_seed),
-                                  math.radians(p.max_steer_deg), p.wheelbase_m)  # fmt: skip
+    def __init__(self, config: EgoConfig, *, car: EgoPhysics, rng: np.random.Generator, route: list[str],
+                 path_of: Callable[[list[str]], RoutePath], extension: RouteExtension | None, bridge: EgoBridge,
+                 step_s: float, emit: Callable[[SumoEvent], None]):  # fmt: skip
+        self.car = car
+        self.route = route
+        self._path_of = path_of
+        self.extension = extension
+        self.bridge = bridge
+        self.step_s = step_s
+        self.emit = emit
+        self.path = path_of(route)
+        p = config.car
+        self.driver = make_driver(config.driver, rng, math.radians(p.max_steer_deg), p.wheelbase_m)
         self.origin: tuple[float, float] | None = None
         self.s_front_m: float | None = None  # the front bumper's arc position on the route path [m]
         self.controls = Controls()
@@ -92,17 +146,18 @@ class EgoController:
         self.car.reset(0.0, 0.0, float(yaw), float(w.speed_mps[slot]))
         self.started = True
 
-    def own_state(self, sim) -> None:
+    def own_state(self, w: World) -> None:
         """The ego is MuJoCo's: its speed and acceleration in the snapshot come from the physics, not from
         SUMO's reconstruction of the moveToXY jumps."""
-        slot = sim.world.slot_of.get(EGO_ID)
+        slot = w.slot_of.get(EGO_ID)
         if slot is not None and self.started:
             st = self.car.state()
-            sim.world.speed_mps[slot] = st.speed_mps
-            sim.world.accel_mps2[slot] = st.accel_mps2
+            w.speed_mps[slot] = st.speed_mps
+            w.accel_mps2[slot] = st.accel_mps2
 
-    def drive(self, sim) -> None:
-        w = sim.world
+    def step(self, w: World, displays: dict) -> None:
+        """The driver phase: the Percept from the snapshot, SUMO's view of the ego and the assistance
+        systems' ``displays``, and the driver's controls for the step."""
         slot = w.slot_of.get(EGO_ID)
         if slot is None:
             return
@@ -113,26 +168,26 @@ class EgoController:
         s_c, _ = self.path.project(cx, cy)
         s_front = s_c + 0.5 * self.car.params.length_m
         self.s_front_m = s_front
-        if sim.route is not None and sim.route.extend_if_short(self.path.length_m - s_front):
+        if self.extension is not None and self.extension.extend_if_short(self.path.length_m - s_front):
             self._rebuild_path()
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
-        self._on_sumo_route = self._keep_sumo_route(sim, slot, s_front)
+        self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
-        tls = self._next_tls(sim, s_front)
-        self._check_red_light(sim, tls)
+        tls = self._next_tls(w, s_front)
+        self._check_red_light(tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
-        kw.update(self._yield_line(sim, s_front, tls))
-        adas = sim.current.adas_displays
+        kw.update(self._yield_line(w, s_front, tls))
+        adas = displays
         self.percept = Percept(
             t_s=w.t_s, speed_mps=st.speed_mps, x_m=cx, y_m=cy, yaw_rad=st.yaw_rad, accel_mps2=st.accel_mps2,
             yaw_rate_rps=st.yaw_rate_rps, path_xy_m=self.path.window(s_c - PREVIEW_BEHIND_M, s_c + PREVIEW_AHEAD_M),
             speed_limit_mps=limit, next_speed_limit_mps=next_limit, next_speed_limit_dist_m=next_dist,
             route_end_dist_m=max(0.0, self.path.length_m - s_front), **kw, **adas,
         )  # fmt: skip
-        self.controls = self.driver.act(self.percept, sim.step_s)
+        self.controls = self.driver.act(self.percept, self.step_s)
 
-    def _keep_sumo_route(self, sim, slot: int, s_front: float) -> bool:
+    def _keep_sumo_route(self, w: World, slot: int, s_front: float) -> bool:
         """Whether SUMO holds the ego's planned route ahead of it; gives SUMO the next stretch of it when the
         held one runs short or SUMO has replaced it.
 
@@ -140,50 +195,50 @@ class EgoController:
         then replaces the route with the one edge it mapped to. Left so, the twin would carry that one-edge
         route for the rest of the run: SUMO's next light and right of way for the ego, and its foes' view
         of where the ego goes, would all end at the next junction."""
-        route = sim.ego_route
+        route = self.route
         k = self.path.edge_index(s_front)
         end = self._sumo_route_end
         # SUMO's route index may be one edge behind the path's: the pose written last step (moveToXY) takes
         # effect only at the next one, so the front bumper can enter the next edge here a step earlier
         expected = (len(route) if end is None else end) - k
-        held = sim.bridge.edges_left(EGO_ID) in (expected, expected + 1)
+        held = self.bridge.edges_left(EGO_ID) in (expected, expected + 1)
         if (
             held
             and end is not None
             and (end == len(route) or self.path.limit_s[end] - s_front > 0.5 * SUMO_ROUTE_AHEAD_M)
         ):
             return True
-        code = sim.world.edge_code[slot]
-        if code < 0 or sim.world.edge_names[code] != route[k]:
+        code = w.edge_code[slot]
+        if code < 0 or w.edge_names[code] != route[k]:
             return held  # in a junction, or off the route: SUMO's route cannot start here
         end = self.path.edge_index(s_front + SUMO_ROUTE_AHEAD_M) + 1
-        ev = sim.bridge.set_ego_route(route[k:end])
+        ev = self.bridge.set_ego_route(route[k:end])
         if ev:
-            sim.events.append(ev)
+            self.emit(ev)
             return False
         self._sumo_route_end = end
         self._tls_cache = None
         return True
 
-    def _next_tls(self, sim, s_front: float):
+    def _next_tls(self, w: World, s_front: float):
         """SUMO's next light on the ego's way (a costly lookup): every step when it is near, otherwise once
         a second, its distance carried forward with the ego's progress in between."""
         cached = self._tls_cache
         if cached is not None:
             tls, s_read, step = cached
             moved = s_front - s_read
-            if tls and tls[2] - moved > TLS_NEAR_M and (sim.world.step - step) * sim.step_s < TLS_REFRESH_S:
+            if tls and tls[2] - moved > TLS_NEAR_M and (w.step - step) * self.step_s < TLS_REFRESH_S:
                 return (tls[0], tls[1], tls[2] - moved, tls[3])
-        tls = sim.bridge.next_tls(EGO_ID)
-        self._tls_cache = (tls, s_front, sim.world.step)
+        tls = self.bridge.next_tls(EGO_ID)
+        self._tls_cache = (tls, s_front, w.step)
         return tls
 
-    def _check_red_light(self, sim, tls) -> None:
+    def _check_red_light(self, tls) -> None:
         """The ego crossed a stop line at red: the light it was about to reach is gone while it was red."""
         last = self._last_tls
         self._last_tls = tls
         if last and last[2] < 5.0 and _TLS.get(last[3]) == "r" and (not tls or tls[:2] != last[:2]):
-            sim.events.append(SumoEvent("red_light_violation", EGO_ID, f"{last[0]} link {last[1]}", last[2]))
+            self.emit(SumoEvent("red_light_violation", EGO_ID, f"{last[0]} link {last[1]}", last[2]))
 
     def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
         """The nearest vehicle whose rear is on the ego's own path ahead: what a driver sees in front of
@@ -208,7 +263,7 @@ class EgoController:
         return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
                 "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
-    def _yield_line(self, sim, s_front: float, tls) -> dict:
+    def _yield_line(self, w: World, s_front: float, tls) -> dict:
         """The next line where the ego must yield (a stop or give-way sign, a minor road, priority to the
         right, a roundabout entry; a green without priority at a light) and, near it, the gap in the
         priority traffic: when the first vehicle the ego must let pass reaches the conflict [s] (paper IV.B:
@@ -229,39 +284,40 @@ class EgoController:
                 kw.update(sign_kind=kind, sign_dist_m=dist, sign_id=line.junction,
                           junction_movement=movement_of(line.direction, line.into_roundabout, permissive))  # fmt: skip
                 if dist <= YIELD_LOOK_M:
-                    kw["junction_gap_s"] = priority_gap_s(sim, EGO_ID, dist)
+                    kw["junction_gap_s"] = priority_gap_s(w, self.bridge, EGO_ID, dist)
                 break
         return kw
 
     def _rebuild_path(self) -> None:
         """The route was extended: the path again from the whole route, the projection kept."""
         last_s = self.path._last_s
-        self.path = RoutePath.from_network(self.sim.net, self.sim.ego_route)
+        self.path = self._path_of(self.route)
         self.path._last_s = last_s
         self._tls_cache = None
 
-    def integrate(self, sim) -> None:
+    def integrate(self) -> None:
+        """The ego phase: the car over one SUMO step under the driver's controls."""
         if not self.started:
             return
         c = self.controls
-        self.car.step(c.throttle, c.brake, c.steer, sim.step_s)
+        self.car.step(c.throttle, c.brake, c.steer, self.step_s)
 
-    def write_back(self, sim) -> None:
+    def write_back(self, w: World) -> dict:
+        """The writeback phase: the car's pose and speed into SUMO for the next step; returns the ego's
+        additions to /ego/state (empty before the ego has started)."""
         if not self.started:
-            return
+            return {}
         st = self.car.state()
         x, y, angle = st.to_sumo(self.origin)
         p = self.percept
-        slot = sim.world.slot_of.get(EGO_ID)
+        slot = w.slot_of.get(EGO_ID)
         # on its own path and mapped to a lane by SUMO: no need to search the network for the road
-        suspicious = (
-            p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or sim.world.edge_code[slot] < 0
-        )
-        ev = sim.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious,
+        suspicious = p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or w.edge_code[slot] < 0
+        ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious,
                                   on_route=self._on_sumo_route and not suspicious)  # fmt: skip
         if ev:
-            sim.events.append(ev)
-        sim.current.ego_log = {
+            self.emit(ev)
+        return {
             "throttle": round(self.controls.throttle, 4), "brake": round(self.controls.brake, 4),
             "steer": round(self.controls.steer, 4), "physics_speed_mps": round(st.speed_mps, 4),
             "path_offset_m": round(p.lateral_error_m, 4) if p else None,
@@ -275,3 +331,6 @@ class EgoController:
             "junction_gap_s": round(p.junction_gap_s, 2) if p and math.isfinite(p.junction_gap_s) else None,
             "driver_mode": getattr(getattr(self.driver, "debug", None), "mode", ""),
         }  # fmt: skip
+
+    def close(self) -> None:
+        pass

@@ -29,10 +29,14 @@ Its speed is only ever capped (SUMO's car following, right of way and lights sti
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Protocol
 
+from cosim.driver import Percept
 from cosim.driver.gap_acceptance import critical_gap_s, follow_up_s, movement_of
-from cosim.phases.ego import priority_gap_s
-from cosim.world import EGO_ID, LEAD_ID, SumoEvent
+from cosim.driver.route import RoutePath
+from cosim.phases.ego import FoesBridge, priority_gap_s
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this time [s]
 YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
@@ -51,9 +55,45 @@ DIVERT_AHEAD_M = 40.0  # ... at a junction at least this far ahead of it, room t
 DIVERT_RETRY_S = 5.0  # when no junction offers a way out yet, ask again after this long [s]
 
 
+class LeadBridge(FoesBridge, Protocol):
+    """What the lead asks SUMO and tells it (``cosim.sumo_bridge.SumoBridge`` provides it)."""
+
+    def cap_speed(self, vid: str, speed_mps: float | None) -> None: ...
+
+    def lane_speed_limit(self, vid: str) -> float: ...
+
+    def next_tls(self, vid: str) -> tuple[str, int, float, str] | None: ...
+
+    def tls_green_left_s(self, tls_id: str, link_index: int) -> float: ...
+
+    def next_link(self, vid: str) -> tuple[str, float, str] | None: ...
+
+    def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None: ...
+
+    def route_ahead(self, vid: str) -> list[str]: ...
+
+    def divert(self, vid: str, keep_off: set[str], min_ahead_m: float) -> str | None: ...
+
+
+class EgoOnPath(Protocol):
+    """What the lead reads of the ego's phase (``cosim.phases.ego.EgoController``): where its front bumper
+    is on its route path, that path, and what its driver perceives (the ego's leader)."""
+
+    s_front_m: float | None
+    path: RoutePath
+    percept: Percept | None
+
+
 class LeadVehicle:
-    def __init__(self, sim, wait_beyond_m: float):
-        self.sim = sim
+    """Ports: how far behind it lets the ego fall (``wait_beyond_m``), SUMO's operations for the lead
+    (``bridge``), the ego's phase (``ego``: None when SUMO drives the ego; the gap is then a straight line
+    and no cut-in is seen) and ``emit`` for its events of the step; ``step`` reads the snapshot."""
+
+    def __init__(self, wait_beyond_m: float, *, bridge: LeadBridge, ego: EgoOnPath | None,
+                 emit: Callable[[SumoEvent], None]):  # fmt: skip
+        self.bridge = bridge
+        self.ego = ego
+        self.emit = emit
         self.wait_beyond_m = wait_beyond_m
         self.waiting = False  # the lead slows down or stands for the ego
         self.cut_ins = 0
@@ -67,56 +107,54 @@ class LeadVehicle:
         self._between: tuple[str, float] | None = None  # (vehicle between the lead and the ego, since when)
         self._divert_asked: dict[str, float] = {}  # vehicle -> when it was last asked to turn off
 
-    def step(self, sim) -> None:
-        w = sim.world
+    def step(self, w: World) -> None:
         lead, ego = w.slot_of.get(LEAD_ID), w.slot_of.get(EGO_ID)
         if lead is None or ego is None:
             return
-        self.gap_m = self._gap(sim, lead, ego)
-        self._log_cut_in(sim)
-        self._divert_cut_in(sim)
+        self.gap_m = self._gap(w, lead, ego)
+        self._log_cut_in()
+        self._divert_cut_in(w)
         v_ego = float(w.speed_mps[ego])
         caps = []
         if self.wait_beyond_m > 0:
-            v_f, gap_f = self._waited_for(sim, v_ego)
+            v_f, gap_f = self._waited_for(w, v_ego)
             caps.append(max(0.0, v_f + (self.wait_beyond_m - gap_f) / CLOSE_TIME_S))
-        holds = [c for c in (self._light_cap(sim, v_ego), self._yield_cap(sim)) if c is not None]
+        holds = [c for c in (self._light_cap(w, v_ego), self._yield_cap(w)) if c is not None]
         self.waiting = bool(holds) or (self.wait_beyond_m > 0 and self.gap_m > self.wait_beyond_m)
         cap = min(caps + holds) if caps or holds else math.inf
-        if cap < sim.bridge.lane_speed_limit(LEAD_ID):
-            sim.bridge.cap_speed(LEAD_ID, cap)
+        if cap < self.bridge.lane_speed_limit(LEAD_ID):
+            self.bridge.cap_speed(LEAD_ID, cap)
             self._capped = True
         elif self._capped:
-            sim.bridge.cap_speed(LEAD_ID, None)
+            self.bridge.cap_speed(LEAD_ID, None)
             self._capped = False
 
-    def _waited_for(self, sim, v_ego: float) -> tuple[float, float]:
+    def _waited_for(self, w: World, v_ego: float) -> tuple[float, float]:
         """(speed [m/s], gap [m]) of whom the lead waits for: the ego, or while a car is between them that
         car. Waiting for the ego behind it would make the lead crawl and hold that car (and so the ego)
         back until the car turns off."""
         if self._between is not None:
-            follower = sim.bridge.follower(LEAD_ID, self.wait_beyond_m * 3)
-            slot = sim.world.slot_of.get(follower[0]) if follower else None
+            follower = self.bridge.follower(LEAD_ID, self.wait_beyond_m * 3)
+            slot = w.slot_of.get(follower[0]) if follower else None
             if slot is not None:
-                return float(sim.world.speed_mps[slot]), follower[1]
+                return float(w.speed_mps[slot]), follower[1]
         return v_ego, self.gap_m
 
-    def _gap(self, sim, lead: int, ego: int) -> float:
+    def _gap(self, w: World, lead: int, ego: int) -> float:
         """Bumper gap along the ego's route path (straight line when the ego has no path)."""
-        w = sim.world
         ux, uy = w.heading_unit()
         rear_x = float(w.x_m[lead] - ux[lead] * w.length_m[lead])
         rear_y = float(w.y_m[lead] - uy[lead] * w.length_m[lead])
-        controller = sim.ego
+        controller = self.ego
         if controller is None or controller.s_front_m is None:
             return math.hypot(rear_x - w.x_m[ego], rear_y - w.y_m[ego])
         near = self._lead_s if self._lead_s is not None else controller.s_front_m
         self._lead_s, _ = controller.path.project(rear_x, rear_y, near_s=near)
         return self._lead_s - controller.s_front_m
 
-    def _light_cap(self, sim, v_ego: float) -> float | None:
+    def _light_cap(self, w: World, v_ego: float) -> float | None:
         """Speed cap that stops the lead at a green light the ego would not get through, else None."""
-        tls = sim.bridge.next_tls(LEAD_ID)
+        tls = self.bridge.next_tls(LEAD_ID)
         if not tls or tls[2] > LIGHT_DECIDE_M:
             return None
         tls_id, link, dist, state = tls
@@ -124,22 +162,22 @@ class LeadVehicle:
         if (tls_id, link, green) != self._light:  # a new light, or this one turned green / ended its green
             self._light = (tls_id, link, green)
             self._stop_at_light = False
-        v_lead = float(sim.world.speed_mps[sim.world.slot_of[LEAD_ID]])
+        v_lead = float(w.speed_mps[w.slot_of[LEAD_ID]])
         can_stop = dist - STOP_BEFORE_M >= v_lead * v_lead / (2.0 * STOP_DECEL_MPS2)
         if green and not self._stop_at_light and can_stop:
             # decided again every step while the lead can still stop: an ego that slows down (a curve, a
             # car pulling out) may no longer make the green the lead would still get through
-            ego_to_line = dist + float(sim.world.length_m[sim.world.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
-            green_left = sim.bridge.tls_green_left_s(tls_id, link)
+            ego_to_line = dist + float(w.length_m[w.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
+            green_left = self.bridge.tls_green_left_s(tls_id, link)
             self._stop_at_light = ego_to_line / max(v_ego, 1.0) + LIGHT_MARGIN_S > green_left
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 
-    def _yield_cap(self, sim) -> float | None:
+    def _yield_cap(self, w: World) -> float | None:
         """Speed cap that holds the lead at a yield line until the ego is right behind it and the gap in the
         priority traffic suits both, else None."""
-        link = sim.bridge.next_link(LEAD_ID)
+        link = self.bridge.next_link(LEAD_ID)
         if link is None:
             self._yield_wait = None
             return None
@@ -147,44 +185,45 @@ class LeadVehicle:
         if state not in YIELD_STATES or dist > YIELD_HOLD_M:
             self._yield_wait = None
             return None
-        t = sim.world.t_s
+        t = w.t_s
         if self._yield_wait is None or dist > self._yield_wait[0] + 5.0:  # a new line (distances grew)
             self._yield_wait = (dist, t)
         waited = t - self._yield_wait[1]
         self._yield_wait = (dist, self._yield_wait[1])
         movement = movement_of(direction)
         needed = critical_gap_s(movement, waited) + follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
-        if self.gap_m <= EGO_CLOSE_M and priority_gap_s(sim, LEAD_ID, dist) >= needed:
+        if self.gap_m <= EGO_CLOSE_M and priority_gap_s(w, self.bridge, LEAD_ID, dist) >= needed:
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 
-    def _log_cut_in(self, sim) -> None:
+    def _log_cut_in(self) -> None:
         """Another vehicle has become the ego's leader while the lead is still ahead of it."""
-        percept = getattr(sim.ego, "percept", None)
+        percept = getattr(self.ego, "percept", None)
         leader = percept.leader_id if percept is not None and percept.leader_present else None
         if self._ego_leader == LEAD_ID and leader not in (None, LEAD_ID) and self.gap_m > 0:
             self.cut_ins += 1
-            sim.events.append(SumoEvent("lead_cut_in", leader, f"between the lead and the ego ({self.gap_m:.0f} m)",
-                                        self.gap_m))  # fmt: skip
+            self.emit(SumoEvent("lead_cut_in", leader, f"between the lead and the ego ({self.gap_m:.0f} m)",
+                                self.gap_m))  # fmt: skip
         self._ego_leader = leader
 
-    def _divert_cut_in(self, sim) -> None:
+    def _divert_cut_in(self, w: World) -> None:
         """Send a vehicle that has stayed between the lead and the ego off the lead's way."""
         leader = self._ego_leader
         if leader in (None, LEAD_ID) or not self.gap_m > 0:
             self._between = None
             return
-        t = sim.world.t_s
+        t = w.t_s
         if self._between is None or self._between[0] != leader:
             self._between = (leader, t)
         asked = self._divert_asked.get(leader)
         if t - self._between[1] < DIVERT_AFTER_S or (asked is not None and t - asked < DIVERT_RETRY_S):
             return
         self._divert_asked[leader] = t
-        keep_off = set(sim.bridge.route_ahead(LEAD_ID))
-        exit_edge = sim.bridge.divert(leader, keep_off, DIVERT_AHEAD_M)
+        keep_off = set(self.bridge.route_ahead(LEAD_ID))
+        exit_edge = self.bridge.divert(leader, keep_off, DIVERT_AHEAD_M)
         if exit_edge is not None:
             self._divert_asked[leader] = math.inf  # done: it leaves the lead's way at its next junction
-            sim.events.append(
-                SumoEvent("cut_in_diverted", leader, f"turns off onto {exit_edge}, off the lead's way")
-            )
+            self.emit(SumoEvent("cut_in_diverted", leader, f"turns off onto {exit_edge}, off the lead's way"))
+
+    def close(self) -> None:
+        pass

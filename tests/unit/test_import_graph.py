@@ -8,8 +8,9 @@ netconvert wrote through ``cosim.sumo_bridge.network.read_network`` like the run
 other SUMO binaries run as subprocesses, located by ``cosim.sumo_bridge.tools``). Tests, benchmarks and
 examples are outside the package and may use libsumo directly.
 
-The phases given narrow ports (issue 19) do not take the Simulation: their constructors and ``step`` have
-no ``sim`` parameter, and they never import ``cosim.sim``.
+The phases given narrow ports (issue 19) do not take the Simulation: no method of theirs (constructor,
+``step`` and the ego's other schedule entries) has a ``sim`` parameter or names ``sim``, each has ``step``
+and ``close``, and their modules never import ``cosim.sim``.
 """
 
 from __future__ import annotations
@@ -22,12 +23,15 @@ import cosim
 PKG = Path(cosim.__file__).parent
 SIMULATORS = {"libsumo", "traci", "sumolib"}
 BRIDGE = PKG / "sumo_bridge"
-PORTED = {  # module -> classes whose __init__ / step take ports, not the Simulation
+PORTED = {  # module -> classes whose methods take ports, not the Simulation
     "phases/traffic.py": ("TrafficAroundEgo",),
     "phases/route.py": ("EgoRoute",),
     "phases/vanet.py": ("VanetPhase",),
     "phases/adas.py": ("AdasPhase",),
+    "phases/ego.py": ("EgoController",),
+    "phases/lead.py": ("LeadVehicle",),
     "health.py": ("DriveHealth",),
+    "log/recorder.py": ("Recorder",),
 }
 
 
@@ -89,7 +93,10 @@ def test_ported_phases_take_ports_not_the_simulation():
         for cls in classes:
             methods = {f.name: f for f in found[cls].body if isinstance(f, ast.FunctionDef)}
             assert "step" in methods and "close" in methods, (rel, cls)
-            for name in ("__init__", "step"):
-                args = methods[name].args
+            for name, method in methods.items():
+                args = method.args
                 params = [a.arg for a in args.posonlyargs + args.args + args.kwonlyargs]
                 assert "sim" not in params, f"{rel}: {cls}.{name} takes the Simulation"
+            names = {n.id for n in ast.walk(found[cls]) if isinstance(n, ast.Name)}
+            attrs = {n.attr for n in ast.walk(found[cls]) if isinstance(n, ast.Attribute)}
+            assert "sim" not in names | attrs, f"{rel}: {cls} reaches the Simulation"

@@ -1,0 +1,247 @@
+"""The ego's phase with fake ports: a World, a fake bridge for what the ego asks SUMO and writes into it, a
+kinematic bicycle in place of the MuJoCo car, route geometry from hand-made polylines and a list for its
+events (no SUMO, no MuJoCo). The scripted driver is the real one (pure Python)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosim.driver.gap_acceptance import arrival_time_s
+from cosim.driver.route import RoutePath, StopLine
+from cosim.ego_mujoco.params import CarParams
+from cosim.ego_mujoco.state import EgoState
+from cosim.phases.ego import EgoController
+from cosim.runconfig import EgoConfig
+from cosim.seeds import stream
+from cosim.world import EGO_ID, SumoEvent, World
+
+EDGE_M = 200.0  # every fake edge: 200 m due north
+STEP_S = 0.1
+ON_PATH = 0.5  # the driver keeps the kinematic car this close to the straight centre line [m]
+
+
+class KinematicCar:
+    """The physics port without MuJoCo: a kinematic bicycle, throttle up to 3 m/s^2, brake up to 8 m/s^2."""
+
+    def __init__(self, params: CarParams):
+        self.params = params
+        self.x = self.y = self.yaw = self.v = self.a = self.t = self.steer = 0.0
+        self.resets: list[tuple] = []
+
+    def reset(self, x_m, y_m, yaw_rad, speed_mps=0.0):
+        self.resets.append((x_m, y_m, yaw_rad, speed_mps))
+        self.x, self.y, self.yaw, self.v, self.a, self.t = x_m, y_m, yaw_rad, speed_mps, 0.0, 0.0
+
+    def step(self, throttle, brake, steer, duration_s):
+        self.a = 3.0 * throttle - 8.0 * brake
+        self.v = max(0.0, self.v + self.a * duration_s)
+        self.steer = steer
+        self.yaw += self.v / self.params.wheelbase_m * math.tan(steer) * duration_s
+        self.x += self.v * math.cos(self.yaw) * duration_s
+        self.y += self.v * math.sin(self.yaw) * duration_s
+        self.t += duration_s
+        return self.state()
+
+    def state(self):
+        return EgoState(t_s=self.t, x_m=self.x, y_m=self.y, z_m=0.3, yaw_rad=self.yaw, pitch_rad=0.0, roll_rad=0.0,
+                        speed_mps=self.v, lateral_speed_mps=0.0, accel_mps2=self.a, lateral_accel_mps2=0.0,
+                        yaw_rate_rps=self.v / self.params.wheelbase_m * math.tan(self.steer), steer_rad=self.steer,
+                        wheel_speed_radps=np.zeros(4), wheel_load_n=np.full(4, 3500.0),
+                        in_contact=np.ones(4, bool), gear=1, engine_rpm=900.0, length_m=self.params.length_m)  # fmt: skip
+
+
+class FakeBridge:
+    """What the ego asks SUMO, answered from fields the test sets; what it writes, recorded."""
+
+    def __init__(self):
+        self.tls = None  # (id, link, dist, state)
+        self.foes: list[tuple[str, float, float, float, bool]] = []
+        self.held: int | None = None  # edges SUMO holds ahead; None: what the ego gave it
+        self.given: list[list[str]] = []
+        self.reject_route = False
+        self.writes: list[dict] = []
+
+    def next_tls(self, vid):
+        assert vid == EGO_ID
+        return self.tls
+
+    def yield_foes(self, vid, lookahead_m):
+        return self.foes
+
+    def edges_left(self, vid):
+        return self.held if self.held is not None else len(self.given[-1]) if self.given else 0
+
+    def set_ego_route(self, edges):
+        if self.reject_route:
+            return SumoEvent("ego_route_rejected", EGO_ID, "no")
+        self.given.append(list(edges))
+        self.held = None
+        return None
+
+    def write_ego(self, x_m, y_m, heading_deg, speed_mps, *, verify_on_road=True, on_route=False):
+        self.writes.append(dict(x=x_m, y=y_m, heading=heading_deg, speed=speed_mps, verify=verify_on_road,
+                                on_route=on_route))  # fmt: skip
+        return None
+
+
+def _path(edges, stop_lines=()):
+    n = len(edges)
+    return RoutePath([(0.0, 0.0), (0.0, n * EDGE_M)], stop_lines, [(k * EDGE_M, 13.89) for k in range(n)])
+
+
+class Drive:
+    """The ego's phase and its ports; ``step`` runs its four schedule entries and plays SUMO's part (the
+    written pose becomes the snapshot's)."""
+
+    def __init__(self, stop_lines=(), extension=None, edges=("a", "b", "c")):
+        self.cfg = EgoConfig()
+        self.world = World(capacity=8)
+        self.bridge = FakeBridge()
+        self.events: list[SumoEvent] = []
+        self.route = list(edges)
+        self.paths: list[list[str]] = []
+        self.car = KinematicCar(self.cfg.car)
+
+        def path_of(edges):
+            self.paths.append(list(edges))
+            return _path(edges, stop_lines)
+
+        self.ego = EgoController(self.cfg, car=self.car, rng=stream(1, "driver", 0), route=self.route,
+                                 path_of=path_of, extension=extension, bridge=self.bridge, step_s=STEP_S,
+                                 emit=self.events.append)  # fmt: skip
+        self.logs: list[dict] = []
+
+    def place(self, front_m: float = 6.0) -> int:
+        w = self.world
+        slot = w.add(EGO_ID, is_ego=True)
+        w.x_m[slot], w.y_m[slot], w.heading_deg[slot] = 0.0, front_m, 0.0
+        w.length_m[slot], w.width_m[slot] = self.cfg.car.length_m, self.cfg.car.width_m
+        w.edge_code[slot] = w.intern_edge("a")
+        return slot
+
+    def step(self, displays=None) -> None:
+        w = self.world
+        w.step += 1
+        w.t_s = round(w.step * STEP_S, 6)
+        self.ego.own_state(w)
+        self.ego.step(w, displays or {})
+        self.ego.integrate()
+        self.logs.append(self.ego.write_back(w))
+        slot = w.slot_of.get(EGO_ID)
+        if slot is not None and self.bridge.writes:
+            last = self.bridge.writes[-1]
+            w.x_m[slot], w.y_m[slot], w.heading_deg[slot] = last["x"], last["y"], last["heading"]
+            w.edge_code[slot] = w.intern_edge(self.route[min(int(last["y"] // EDGE_M), len(self.route) - 1)])
+
+
+def test_the_driver_drives_the_car_along_its_path_and_the_pose_goes_back_to_sumo():
+    d = Drive()
+    d.step()  # no ego in the snapshot yet: nothing is done
+    assert d.bridge.writes == [] and d.logs == [{}] and d.ego.percept is None and not d.ego.started
+    slot = d.place()
+    for _ in range(150):  # 15 s
+        d.step()
+    w = d.world
+    assert d.ego.started and len(d.car.resets) == 1
+    assert d.car.resets[0][2] == pytest.approx(math.pi / 2)  # facing north, MuJoCo's yaw
+    d.ego.own_state(w)  # the sumo phase of the next step: the snapshot's speed and acceleration are the car's
+    assert w.speed_mps[slot] == d.car.v > 5.0 and w.accel_mps2[slot] == d.car.a
+    ys = [p["y"] for p in d.bridge.writes]
+    assert ys[-1] > 60.0 and all(b >= a - 1e-6 for a, b in zip(ys, ys[1:], strict=False))
+    assert (
+        max(abs(p["x"]) for p in d.bridge.writes) < ON_PATH
+        and max(abs((p["heading"] + 180.0) % 360.0 - 180.0) for p in d.bridge.writes) < 2.0
+    )
+    # on its path and on a lane: mapped onto the route SUMO holds, without a search of the network
+    assert d.bridge.writes[-1]["on_route"] and not d.bridge.writes[-1]["verify"]
+    assert d.bridge.given == [["a", "b", "c"]]  # SUMO got the route ahead once (800 m: all of it)
+    log = d.logs[-1]
+    assert log["physics_speed_mps"] == pytest.approx(round(d.car.v, 4)) and log["driver_mode"]
+    assert abs(log["path_offset_m"]) < ON_PATH and log["tls_state"] is None and log["leader_id"] is None
+    assert d.ego.percept.speed_limit_mps == pytest.approx(13.89)
+    assert d.events == []
+    d.ego.close()
+
+
+def test_the_assistance_displays_reach_the_percept_and_a_leader_on_the_path_is_seen():
+    d = Drive()
+    d.place()
+    w = d.world
+    car = w.add("scv1")
+    w.x_m[car], w.y_m[car], w.heading_deg[car], w.length_m[car], w.width_m[car] = 0.0, 40.0, 0.0, 4.5, 1.8
+    w.speed_mps[car] = 7.0
+    d.step({"sys_b_gap_s": 1.3, "sys_b_level": "advisory"})
+    p = d.ego.percept
+    assert p.sys_b_gap_s == 1.3 and p.sys_b_level == "advisory"
+    assert p.leader_id == "scv1" and p.leader_gap_m == pytest.approx(40.0 - 4.5 - 6.0, abs=0.2)
+    assert p.leader_speed_mps == 7.0 and d.logs[-1]["leader_id"] == "scv1"
+
+
+def test_crossing_a_red_stop_line_is_an_event():
+    d = Drive()
+    d.place()
+    d.bridge.tls = ("J", 2, 3.0, "r")
+    d.step()
+    assert d.ego.percept.tls_state == "r" and d.ego.percept.tls_id == "J:2" and d.logs[-1]["tls_state"] == "r"
+    d.bridge.tls = None  # the light is behind the ego
+    d.step()
+    assert [(e.kind, e.vehicle, e.detail) for e in d.events] == [("red_light_violation", EGO_ID, "J link 2")]
+
+
+def test_at_a_give_way_line_the_gap_comes_from_sumos_right_of_way():
+    line = StopLine(60.0, "J7", "m", (0.0, 60.0), "s", False, 0)
+    d = Drive(stop_lines=[line])
+    d.place()
+    foe = d.world.add("foe")
+    d.world.speed_mps[foe] = 10.0
+    d.bridge.foes = [("foe", 54.0, 50.0, 0.0, False), ("far", 54.0, 50.0, 0.0, False)]  # "far" is not in
+    d.step()
+    p = d.ego.percept
+    assert p.sign_kind == "give_way" and p.sign_id == "J7" and p.sign_dist_m == pytest.approx(54.0, abs=0.1)
+    assert p.junction_gap_s == pytest.approx(arrival_time_s(50.0, 10.0))
+    d.bridge.foes = [("foe", 54.0, 50.0, 10.0, True)]  # standing behind another car: it waits itself
+    d.step()
+    assert d.ego.percept.junction_gap_s == math.inf
+
+
+def test_an_extended_route_rebuilds_the_path_and_sumo_gets_the_new_stretch():
+    class Extension:
+        def __init__(self, route):
+            self.route, self.asked = route, []
+
+        def extend_if_short(self, ahead_m):
+            self.asked.append(ahead_m)
+            if len(self.asked) == 2:
+                self.route += ["d", "e", "f", "g"]  # in place: the list is shared
+                return True
+            return False
+
+    d = Drive(extension=None)
+    ext = Extension(d.route)
+    d.ego.extension = ext
+    d.place()
+    d.step()
+    assert d.paths == [["a", "b", "c"]] and ext.asked[0] == pytest.approx(3 * EDGE_M - 6.0, abs=0.1)
+    d.step()
+    assert d.paths[-1] == ["a", "b", "c", "d", "e", "f", "g"] and d.ego.path.length_m == 7 * EDGE_M
+    assert d.bridge.given == [["a", "b", "c"]]  # SUMO's stretch is renewed only when it runs short ...
+    d.bridge.held = 1  # ... or SUMO replaced it: then it ends 800 m ahead, not with the whole route
+    d.step()
+    assert d.bridge.given[-1] == ["a", "b", "c", "d", "e"]
+
+
+def test_a_route_sumo_replaced_is_given_again_and_a_refusal_is_an_event():
+    d = Drive()
+    d.place()
+    d.step()
+    assert d.bridge.given == [["a", "b", "c"]] and d.bridge.writes[-1]["on_route"]
+    d.bridge.held = 1  # SUMO mapped the pose onto one edge and dropped the rest
+    d.step()
+    assert d.bridge.given == [["a", "b", "c"], ["a", "b", "c"]]
+    d.bridge.held, d.bridge.reject_route = 1, True
+    d.step()
+    assert [e.kind for e in d.events] == ["ego_route_rejected"]
+    assert not d.bridge.writes[-1]["on_route"]  # SUMO may map the pose onto any lane meanwhile

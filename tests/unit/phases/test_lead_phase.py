@@ -1,0 +1,254 @@
+"""The lead vehicle of the following task as a phase with fake ports: a World, a fake bridge answering
+what the lead asks SUMO, a fake ego phase (its path and percept) and a list for its events (no SUMO, no
+MuJoCo)."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import pytest
+
+from cosim.driver.route import RoutePath
+from cosim.phases.ego import priority_gap_s
+from cosim.phases.lead import LeadVehicle
+from cosim.world import EGO_ID, LEAD_ID, World
+
+
+class FakeBridge:
+    """What the lead asks SUMO, answered from fields the test sets."""
+
+    def __init__(self):
+        self.caps: list[float | None] = []
+        self.tls = None  # (id, link, dist, state)
+        self.green_left_s = math.inf
+        self.link = None  # (state, dist, direction)
+        self.foes: list[tuple[str, float, float, float, bool]] = []
+        self.diverted: list[tuple[str, set]] = []
+        self.exit_edge: str | None = "side"
+
+    def cap_speed(self, vid, speed):
+        assert vid == LEAD_ID
+        self.caps.append(speed)
+
+    def lane_speed_limit(self, vid):
+        return 13.0
+
+    def next_tls(self, vid):
+        return self.tls
+
+    def tls_green_left_s(self, tls_id, link):
+        return self.green_left_s
+
+    def next_link(self, vid):
+        return self.link
+
+    def yield_foes(self, vid, lookahead_m):
+        return self.foes
+
+    def route_ahead(self, vid):
+        assert vid == LEAD_ID
+        return ["a", "b", "c"]
+
+    def follower(self, vid, distance_m):
+        return None
+
+    def divert(self, vid, keep_off, min_ahead_m):
+        self.diverted.append((vid, keep_off))
+        return self.exit_edge
+
+
+class FakeEgo:
+    """What the lead reads of the ego's phase: its front bumper on its route path (None: no path, the gap is
+    a straight line), the path and its driver's percept (the ego's leader)."""
+
+    def __init__(self, s_front_m=None, path=None):
+        self.s_front_m, self.path = s_front_m, path
+        self.percept = None
+
+    def sees(self, leader):
+        self.percept = SimpleNamespace(leader_present=leader is not None, leader_id=leader)
+
+
+def fake_sim(gap_m: float, ego_speed: float):
+    """Lead and ego on a straight road heading north (SUMO angle 0), the lead's rear ``gap_m`` ahead; the
+    ports the lead is given (``bridge``, ``ego``, ``events`` for ``emit``) beside the snapshot."""
+    w = World(capacity=8)
+    for vid, y in ((EGO_ID, 0.0), (LEAD_ID, gap_m + 5.0)):
+        s = w.add(vid, is_ego=vid == EGO_ID)
+        w.x_m[s], w.y_m[s], w.heading_deg[s], w.length_m[s] = 0.0, y, 0.0, 5.0
+    w.speed_mps[w.slot_of[EGO_ID]] = ego_speed
+    return SimpleNamespace(world=w, bridge=FakeBridge(), ego=FakeEgo(), events=[])
+
+
+def _lead(sim, wait_beyond_m: float = 40.0) -> LeadVehicle:
+    return LeadVehicle(wait_beyond_m, bridge=sim.bridge, ego=sim.ego, emit=sim.events.append)
+
+
+def test_the_lead_waits_for_a_lagging_ego_and_stands_while_it_stands():
+    sim = fake_sim(gap_m=80.0, ego_speed=6.0)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.gap_m == pytest.approx(80.0)
+    assert sim.bridge.caps[-1] < 6.0 and lead.waiting  # slower than the ego: it closes up
+    sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 0.0
+    lead.step(sim.world)
+    assert sim.bridge.caps[-1] == 0.0  # the ego stands (a red light behind the lead): so does the lead
+
+
+def test_the_lead_drives_freely_when_the_ego_follows_closely():
+    sim = fake_sim(gap_m=15.0, ego_speed=10.0)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert not lead.waiting and sim.bridge.caps == []  # its cap is above the limit: nothing to tell SUMO
+
+
+def test_the_lead_stops_at_a_green_the_ego_would_miss():
+    sim = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 40.0, "G"), 3.0  # the ego needs (40+5+30)/8 ~ 9 s
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting and sim.bridge.caps[-1] <= math.sqrt(2 * 2.0 * 39.0)  # braking for the line
+    sim2 = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 40.0, "G"), 30.0  # long green: both get through
+    lead2 = _lead(sim2)
+    lead2.step(sim2.world)
+    assert not lead2.waiting
+
+
+def test_the_lead_decides_again_when_the_ego_slows_down_before_a_green():
+    sim = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 60.0, "G"), 15.0  # (60+5+30)/8 + 1.5 ~ 13 s: go
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert not lead.waiting
+    # the ego brakes for a curve: (55+5+30)/4 + 1.5 = 24 s > the 14 s of green left; the lead (8 m/s,
+    # 16 m to stop at 2 m/s^2) can still stop 55 m before the line, so it does
+    sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 4.0
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 55.0, "G"), 14.0
+    lead.step(sim.world)
+    assert lead.waiting
+    # past the point where it could stop comfortably it goes on whatever the ego does
+    sim2 = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim2.world.speed_mps[sim2.world.slot_of[LEAD_ID]] = 12.0
+    sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 60.0, "G"), 15.0
+    lead2 = _lead(sim2)
+    lead2.step(sim2.world)
+    sim2.world.speed_mps[sim2.world.slot_of[EGO_ID]] = 2.0
+    sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 30.0, "G"), 12.0  # 36 m needed to stop from 12 m/s
+    lead2.step(sim2.world)
+    assert not lead2.waiting
+
+
+def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_suits_both():
+    sim = fake_sim(gap_m=25.0, ego_speed=5.0)
+    sim.bridge.link = ("m", 10.0, "s")
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting  # the ego is 25 m behind: wait for it at the line
+    sim3 = fake_sim(gap_m=8.0, ego_speed=3.0)
+    sim3.bridge.link = ("m", 10.0, "s")
+    sim3.world.add("foe")
+    sim3.world.speed_mps[sim3.world.slot_of["foe"]] = 10.0
+    sim3.bridge.foes = [("foe", 10.0, 80.0, 0.0, False)]  # arrives in 8 s: < t_c + t_f = 6.5 + 4.8 s
+    lead3 = _lead(sim3)
+    lead3.step(sim3.world)
+    assert lead3.waiting
+    sim3.bridge.foes = [("foe", 10.0, 150.0, 0.0, False)]  # 15 s: room for both
+    lead3.step(sim3.world)
+    assert not lead3.waiting
+
+
+def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
+    sim = fake_sim(gap_m=20.0, ego_speed=8.0)
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(sim.world)
+    sim.ego.sees("scv7")
+    lead.step(sim.world)
+    assert (
+        lead.cut_ins == 1
+        and [e.kind for e in sim.events] == ["lead_cut_in"]
+        and sim.events[0].vehicle == "scv7"
+    )
+
+
+def test_a_vehicle_that_stays_between_the_lead_and_the_ego_is_sent_off_the_leads_way():
+    sim = fake_sim(gap_m=20.0, ego_speed=8.0)
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(sim.world)
+    sim.ego.sees("scv7")
+    sim.bridge.exit_edge = None  # no junction offers a way out yet
+    for k in range(1, 100):  # 9.9 s with scv7 between them
+        sim.world.t_s = k * 0.1
+        lead.step(sim.world)
+    # asked first after DIVERT_AFTER_S (5 s), again DIVERT_RETRY_S later, never every step
+    assert [v for v, _ in sim.bridge.diverted] == ["scv7"] and sim.bridge.diverted[0][1] == {"a", "b", "c"}
+    sim.bridge.exit_edge = "side"
+    for k in range(100, 200):
+        sim.world.t_s = k * 0.1
+        lead.step(sim.world)
+    assert len(sim.bridge.diverted) == 2  # the second ask turned it off; it is not asked again
+    assert [e.kind for e in sim.events] == ["lead_cut_in", "cut_in_diverted"]
+    # the lead back as the ego's leader: nothing more happens
+    sim.ego.sees(LEAD_ID)
+    lead.step(sim.world)
+    assert len(sim.bridge.diverted) == 2
+
+
+def test_a_standing_foe_counts_unless_something_holds_it_back():
+    sim = fake_sim(gap_m=20.0, ego_speed=0.0)
+    foe = sim.world.add("foe", is_ego=False)
+    sim.world.speed_mps[foe] = 0.0
+    # first in line at an open link after a whole red: it may start now, 10 m from the conflict
+    sim.bridge.foes = [("foe", 5.0, 10.0, 40.0, False)]
+    assert priority_gap_s(sim.world, sim.bridge, LEAD_ID, 5.0) < 4.0
+    # queued behind another car (or at a closed link): waiting itself, it does not count
+    sim.bridge.foes = [("foe", 5.0, 10.0, 40.0, True)]
+    assert priority_gap_s(sim.world, sim.bridge, LEAD_ID, 5.0) == math.inf
+    # held back but only just stopped: still counts (it may be rolling up to its queue)
+    sim.bridge.foes = [("foe", 5.0, 10.0, 1.0, True)]
+    assert priority_gap_s(sim.world, sim.bridge, LEAD_ID, 5.0) < 4.0
+
+
+def test_with_a_car_between_them_the_lead_keeps_that_car_close_instead_of_crawling():
+    sim = fake_sim(gap_m=60.0, ego_speed=3.0)
+    scv = sim.world.add("scv7", is_ego=False)
+    sim.world.speed_mps[scv] = 10.0
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(sim.world)
+    assert sim.bridge.caps[-1] == 0.0  # 3 + (40 - 60) / 5 < 0: the lead stands for the lagging ego
+    sim.ego.sees("scv7")
+    sim.bridge.follower = lambda vid, d: ("scv7", 12.0)  # right behind the lead at 10 m/s
+    lead.step(sim.world)
+    assert sim.bridge.caps[-1] is None  # 10 + (40 - 12) / 5 = 15.6 m/s: above the limit, not capped
+
+
+def test_the_gap_is_measured_along_the_egos_route_path():
+    # the route turns right 100 m ahead of the ego's front bumper; the lead is 50 m into the new road
+    path = RoutePath([(0.0, -20.0), (0.0, 100.0), (100.0, 100.0)])
+    sim = fake_sim(gap_m=0.0, ego_speed=10.0)
+    w = sim.world
+    lead_slot = w.slot_of[LEAD_ID]
+    w.x_m[lead_slot], w.y_m[lead_slot], w.heading_deg[lead_slot] = 50.0, 100.0, 90.0  # heading east
+    sim.ego.path, sim.ego.s_front_m = path, 20.0  # the ego's front bumper at (0, 0)
+    lead = _lead(sim)
+    lead.step(w)
+    assert lead.gap_m == pytest.approx(100.0 + 45.0)  # along the path, not the straight 110 m
+    assert lead.waiting and sim.bridge.caps  # beyond wait_beyond_m: it slows for the ego
+    sim.ego.path, sim.ego.s_front_m = None, None
+    straight = _lead(sim)
+    straight.step(w)
+    assert straight.gap_m == pytest.approx(math.hypot(45.0, 100.0))
+
+
+def test_nothing_happens_until_both_are_in_and_close_is_safe():
+    sim = fake_sim(gap_m=80.0, ego_speed=6.0)
+    sim.world.remove(LEAD_ID)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert sim.bridge.caps == [] and sim.events == [] and math.isnan(lead.gap_m)
+    lead.close()
