@@ -20,6 +20,7 @@ geometry, so the cache never changes results; it is flushed when it exceeds ``po
 from __future__ import annotations
 
 import math
+import os
 from typing import Literal
 
 import numpy as np
@@ -76,6 +77,99 @@ def pseudo_angle_direction(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 # ------------------------------------------------------------------------------------------------------------
 # shadowing
 # ------------------------------------------------------------------------------------------------------------
+def _cast_los_py(xy, pi, ei, ex0, ey0, edge_x, edge_y, near2, ux, uy, bin_w, n_bins, range_m, depth):
+    """The line-of-sight cast of :meth:`PolarShadowing._cast`, one (point, edge) pair at a time: for each
+    bin the edge spans (seen from the point, on the edge's outer side), the nearest ray parameter in
+    (0, range] into ``depth`` (flat point * n_bins + bin, float64, inf = no wall). The same floating-point
+    operations in the same order as the numpy version, so the same bits; compiled by numba (below)."""
+    pow2 = n_bins & (n_bins - 1) == 0
+    for j in range(pi.size):
+        p = pi[j]
+        e = ei[j]
+        ax = ex0[e] - xy[p, 0]
+        ay = ey0[e] - xy[p, 1]
+        exv = edge_x[e]
+        eyv = edge_y[e]
+        bx = ax + exv
+        by = ay + eyv
+        if not min(ax * ax + ay * ay, bx * bx + by * by) <= near2[e]:
+            continue
+        if not (-ax * eyv + ay * exv) > 0.0:  # the point is on the material's outer side
+            continue
+        cr = ax * by - ay * bx
+        if not abs(cr) > 1e-12:
+            continue
+        # pseudo_angle of a and b: the same operations as the array version
+        s = abs(ax) + abs(ay) + 1e-9
+        q = ay / s
+        b = q * -2.0 + 2.0
+        b = b * (1.0 if ax < 0 else 0.0)
+        p_a = q + 1.0 + b
+        s = abs(bx) + abs(by) + 1e-9
+        q = by / s
+        b = q * -2.0 + 2.0
+        b = b * (1.0 if bx < 0 else 0.0)
+        p_b = q + 1.0 + b
+        if cr > 0:
+            lo = p_a
+            span = (p_b - p_a) % 4.0
+        else:
+            lo = p_b
+            span = (p_a - p_b) % 4.0
+        b0 = math.ceil(lo / bin_w - 0.5)
+        b1 = math.floor((lo + span) / bin_w - 0.5)
+        num = ax * eyv - ay * exv
+        base = p * n_bins
+        for bb in range(b0, b1 + 1):
+            k = bb & (n_bins - 1) if pow2 else bb % n_bins
+            t = num / (ux[k] * eyv - uy[k] * exv)
+            if t > 0.0 and t <= range_m and t < depth[base + k]:
+                depth[base + k] = t
+
+
+_F32_EPS, _F32_M2, _F32_0, _F32_1, _F32_2 = (np.float32(v) for v in (1e-9, -2.0, 0.0, 1.0, 2.0))
+_F32_INF = np.float32(np.inf)
+
+
+def _los_loss_py(link_tx, tx_rows, rep_x, rep_y, rx_x, rx_y, depth2, inv_bin_w, n_bins, out):
+    """:meth:`PolarShadowing.loss_db` of the line-of-sight model per link, in float32 like the numpy
+    version (the same operations in the same order: the same bits): ``out[j]`` = inf when the receiver is
+    farther from the transmitter's ray origin than the first wall in its direction bin, else 0."""
+    for j in range(link_tx.size):
+        i = link_tx[j]
+        dx = rx_x[j] - rep_x[i]
+        dy = rx_y[j] - rep_y[i]
+        r2 = dx * dx + dy * dy
+        s = abs(dx) + abs(dy) + _F32_EPS
+        q = dy / s
+        b = q * _F32_M2 + _F32_2
+        b = b * (_F32_1 if dx < _F32_0 else _F32_0)
+        p = (q + _F32_1 + b) * inv_bin_w
+        k = min(int(p), n_bins - 1)
+        out[j] = _F32_INF if r2 > depth2[tx_rows[i] * n_bins + k] else _F32_0
+
+
+_KERNELS: list = []
+
+
+def los_kernels() -> tuple:
+    """(map cast, link lookup) compiled by numba on first use (cached on disk beside this module), or
+    (None, None) without numba or with ``COSIM_NO_NUMBA`` set: then numpy does the same, to the bit.
+    numba compiles without fastmath (no reassociation, no fused multiply-add), with numpy's division by
+    zero (inf / nan, no exception)."""
+    if not _KERNELS:
+        try:
+            if os.environ.get("COSIM_NO_NUMBA"):
+                raise ImportError
+            import numba
+        except ImportError:
+            _KERNELS.extend((None, None))
+        else:
+            jit = numba.njit(cache=True, error_model="numpy")
+            _KERNELS.extend((jit(_cast_los_py), jit(_los_loss_py)))
+    return _KERNELS[0], _KERNELS[1]
+
+
 class ExactShadowing:
     """Shadowing loss from shapely on the exact link segments (reference implementation)."""
 
@@ -163,6 +257,8 @@ class PolarShadowing:
         self._edge_x, self._edge_y = buildings.ex1 - buildings.ex0, buildings.ey1 - buildings.ey0
         near = self.range_m + buildings.edge_len
         self._near2 = near * near
+        # the compiled line-of-sight cast and link lookup (None: numpy; set them to None to compare)
+        self.kernel, self.loss_kernel = los_kernels() if model == "los" else (None, None)
 
     # -- pool ------------------------------------------------------------------------------------------------
     def _grow(self, rows: int) -> None:
@@ -279,6 +375,14 @@ class PolarShadowing:
         """Ray-cast the maps of points xy (P,2) into pool ``rows`` against edge ei of point pi (pairs)."""
         b = self.b
         R = self.range_m
+        if self.model == "los" and self.kernel is not None:
+            nb = self.n_bins
+            depth = np.full(len(rows) * nb, np.inf, dtype=np.float64)
+            self.kernel(np.ascontiguousarray(xy, dtype=np.float64), pi.astype(np.int64, copy=False),
+                        ei.astype(np.int64, copy=False), b.ex0, b.ey0, self._edge_x, self._edge_y, self._near2,
+                        self.ux, self.uy, self.bin_w, nb, R, depth)  # fmt: skip
+            self.depth2[rows] = (depth * depth).reshape(len(rows), nb).astype(np.float32)
+            return
         ax = b.ex0[ei] - xy[:, 0][pi]  # edge start relative to the point
         ay = b.ey0[ei] - xy[:, 1][pi]
         exv, eyv = self._edge_x[ei], self._edge_y[ei]
@@ -453,6 +557,14 @@ class PolarShadowing:
         if n == 0:
             return np.zeros(0)
         tx_rows = self.rows_for(tx_xy)
+        if self.model == "los" and self.loss_kernel is not None:
+            rep = self.rep_xy[tx_rows].astype(np.float32)
+            out = np.empty(n, dtype=np.float32)
+            self.loss_kernel(np.asarray(link_tx, dtype=np.int64), tx_rows, np.ascontiguousarray(rep[:, 0]),
+                             np.ascontiguousarray(rep[:, 1]), rx_x.astype(np.float32, copy=False),
+                             rx_y.astype(np.float32, copy=False), self.depth2.reshape(-1),
+                             np.float32(1.0 / self.bin_w), self.n_bins, out)  # fmt: skip
+            return out
         rows = tx_rows[link_tx]
         rep = self.rep_xy[tx_rows].astype(np.float32)
         dx = rx_x.astype(np.float32, copy=False) - rep[:, 0][link_tx]
