@@ -44,6 +44,9 @@ COMMON_OPTIONS = [
 ]  # fmt: skip
 
 
+TLS_TYPE = "actuated"
+
+
 def pass1_options(osm: Path, out: Path) -> list[str]:
     return [
         "--osm-files", str(osm),
@@ -57,12 +60,13 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         "--tls.guess-signals", "true",
         "--tls.discard-simple", "true",
         "--tls.join", "true",
-        "--tls.default-type", "static",  # fixed-time plans: deterministic and what the paper's lights do
-        # every approach gets its own green (netconvert's default pairs opposite approaches, so a left turn
-        # waits at a permissive green for a gap in the oncoming stream: on Krems 255094759 that stream turned
-        # right into the same single lane and the left-turn queue, the lead and the ego stood 5-10 minutes;
-        # the ego hit a released right-turner there). SUMO docs, netconvert: --tls.layout opposites|incoming
-        "--tls.layout", "incoming",
+        # gap-actuated plans (SUMO docs, Simulation/Traffic_Lights, "Actuated Traffic Lights": a green ends
+        # early when its detectors see a gap, up to maxDur), deterministic, as most town signals are; with
+        # fixed 90-s cycles Helsinki's dense signals halved the ego's distance in 300 s
+        "--tls.default-type", TLS_TYPE,
+        # opposite approaches share a green (netconvert's default layout); a left turn without its own lane
+        # gets its own approach green instead (tls_layout_patches), not a permissive green
+        "--tls.layout", "opposites",
         "--ramps.guess", "true",
         # OSM width tags split over the lanes give 1.5-m lanes on narrow two-way streets (Helsinki
         # Siltavuorenpenger): a 1.8-m car on each touches the oncoming one; every car lane gets the default width
@@ -239,6 +243,38 @@ def turn_lane_deletions(edge) -> list[str]:
     return deletions
 
 
+def tls_layout_patches(net) -> list[str]:
+    """Node patches giving every approach of a light its own green where a left turn shares its lane with
+    other movements and so can only turn at a permissive green (state ``g``): queued behind a gap that may
+    never come in the oncoming stream (Krems 255094759, where that stream turned into the same lane), it
+    also holds up every car behind it in the lane. netconvert adds a protected left phase only for a left
+    turn with its own lane (SUMO docs, Simulation/Traffic_Lights, "Automatically Generated TLS-Programs").
+    Lights that control several junctions (tls.join) keep their plan: one junction's layout cannot change
+    alone."""
+    patches = []
+    for tls in sorted(net.getTrafficLights(), key=lambda t: t.getID()):
+        links = tls.getConnections()
+        nodes = {inl.getEdge().getToNode() for inl, _, _ in links}
+        if len(nodes) != 1:
+            continue
+        phases = [ph.state for prog in tls.getPrograms().values() for ph in prog.getPhases()]
+        minor = {i for _, _, i in links if any(state[i] == "g" for state in phases)}
+        lanes = {inl for inl, _, _ in links}
+        if any(_shared_minor_left(lane, minor) for lane in lanes):
+            node = next(iter(nodes))
+            x, y = node.getCoord()[:2]
+            # a new light id: netconvert keeps a loaded plan for the old one whatever tlLayout says
+            patches.append(f'    <node id={quoteattr(node.getID())} x="{x:.2f}" y="{y:.2f}" type="traffic_light" '
+                           f'tl={quoteattr(tls.getID() + "_incoming")} tlType="{TLS_TYPE}" tlLayout="incoming"/>')  # fmt: skip
+    return patches
+
+
+def _shared_minor_left(lane, minor_links: set[int]) -> bool:
+    conns = lane.getOutgoing()
+    left = [c for c in conns if c.getDirection() in ("l", "L") and c.getTLLinkIndex() in minor_links]
+    return bool(left) and any(c.getDirection() not in ("l", "L", "t") for c in conns)
+
+
 def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path):
     """Write node / edge / connection patch files for pass 2; returns them and the sign summary."""
     junction_kind: dict[str, str] = {}
@@ -282,6 +318,7 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
                             f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}" '
                             f'speed="{behaviour.give_way_approach_speed_kmh / 3.6:.3f}"/>'
                         )
+    nodes.extend(tls_layout_patches(net))
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getParams().get("turn:lanes"):
             cons.extend(turn_lane_deletions(edge))
@@ -369,7 +406,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     run1 = run_tool("netconvert", pass1_options(osm.path, pass1))
     (workdir / "netconvert.log").write_text(run1.log)
     _check("netconvert", run1, osm.path)
-    net1 = read_network(pass1)
+    net1 = read_network(pass1, programs=True)
     if not [e for e in net1.getEdges() if e.allows("passenger")]:
         raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
     placements = place_signs(net1, osm)

@@ -12,9 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def read_network(net_file: str | Path, *, internal: bool = False):
+def read_network(net_file: str | Path, *, internal: bool = False, programs: bool = False):
     """The network of ``net_file`` (a ``sumolib.net.Net``); ``internal``: with the junctions' internal
-    lanes (route geometry through junctions needs them)."""
+    lanes (route geometry through junctions needs them); ``programs``: with the traffic lights' plans."""
     import sumolib
 
-    return sumolib.net.readNet(str(net_file), withInternal=internal)
+    return sumolib.net.readNet(str(net_file), withInternal=internal, withPrograms=programs)

@@ -13,7 +13,7 @@ from cosim.scenario.signs import load_signs
 def build(sketch: OsmSketch, tmp_path, name="map"):
     osm = sketch.write(tmp_path / f"{name}.osm")
     scn = build_scenario(osm, tmp_path / f"{name}-scn", density="low", seed=1, log=lambda *a: None)
-    net = sumolib.net.readNet(str(scn.net_file), withInternal=True)
+    net = sumolib.net.readNet(str(scn.net_file), withInternal=True, withPrograms=True)
     return scn, net, load_signs(scn.signs_file)
 
 
@@ -147,3 +147,25 @@ def test_traffic_light_from_osm(tmp_path):
     _, net, signs = build(sk, tmp_path)
     assert node_of(net, sk, "c").getType() == "traffic_light"
     assert len([s for s in signs if s.kind == "traffic_light"]) == 4
+
+
+def _green_approaches(net, tls_id: str) -> list[set[str]]:
+    """For each green phase of a light, the incoming edges with a green (G or g) link."""
+    tls = net.getTLS(tls_id)
+    edge_of = {i: inl.getEdge().getID() for inl, _, i in tls.getConnections()}
+    phases = [ph.state for prog in tls.getPrograms().values() for ph in prog.getPhases()]
+    return [{edge_of[i] for i, s in enumerate(state) if s in "Gg" and i in edge_of} for state in phases
+            if "G" in state or "g" in state]  # fmt: skip
+
+
+def test_a_left_turn_sharing_its_lane_gets_its_own_approach_green(tmp_path):
+    """Single-lane two-way roads: every left turn shares its lane, so it would wait at a permissive green
+    for gaps and block the lane; every approach gets its own green and no link is left permissive."""
+    sk = crossroads(major="secondary", minor="tertiary", centre_tags={"highway": "traffic_signals"})
+    _, net, _ = build(sk, tmp_path)
+    (tls,) = net.getTrafficLights()
+    assert tls.getID().endswith("_incoming")
+    greens = _green_approaches(net, tls.getID())
+    assert len(greens) == 4 and all(len(g) == 1 for g in greens)
+    states = [ph.state for prog in tls.getPrograms().values() for ph in prog.getPhases()]
+    assert not any("g" in s for s in states)
