@@ -62,7 +62,13 @@ class RoutePath:
             edge = net.getEdge(eid)
             nxt = net.getEdge(route[i + 1]) if i + 1 < len(route) else None
             conns = [c for c in edge.getOutgoing().get(nxt, [])] if nxt else []
-            conns = sorted(conns, key=lambda c: c.getFromLane().getIndex())
+            # the connection whose lane is nearest the one the ego arrives on: every lane change is made
+            # blind to cars beside it, so the path makes as few as the route allows (Helsinki 26431226:
+            # lane 0 -> 2 within 30 m put the ego into a car in lane 2)
+            here = entry_lane.getIndex() if entry_lane is not None else 0
+            conns = sorted(
+                conns, key=lambda c: (abs(c.getFromLane().getIndex() - here), c.getFromLane().getIndex())
+            )
             lane = conns[0].getFromLane() if conns else (entry_lane or edge.getLane(0))
             shape = [tuple(p[:2]) for p in lane.getShape()]
             if (
