@@ -27,6 +27,11 @@ BENCHES = [
         "SUMO's own step: the binary, libsumo, and libsumo inside cosim (issue 20 item 2)",
         ["bench.bench_sumo_step"],
     ),
+    (
+        "kernels",
+        "Compiled kernels: `cosim run` with and without the numba line-of-sight kernels (issue 20 item 4)",
+        ["bench.bench_kernels", "--seconds", "120", "--repeat", "3"],
+    ),
     ("scenario", "Scenario build: cold vs cached (issue: scenario pipeline)", ["bench.bench_scenario"]),
     (
         "core",
@@ -52,7 +57,11 @@ BENCHES = [
         ["bench.bench_drive", "--experiment"],
     ),
     ("sweep", "Sweep throughput, local pool vs Ray (issue: sweeps)", ["bench.bench_sweep"]),
-    ("render", "3D view frame rate (issue: 3D view)", ["bench.bench_render", "--seconds", "20"]),
+    (
+        "render",
+        "3D view frame rate and input-to-display latency (issues: 3D view, 20 item 6)",
+        ["bench.bench_render", "--seconds", "20", "--repeat", "3"],
+    ),
 ]
 
 

@@ -44,7 +44,7 @@ def add_drive_parser(subparsers) -> argparse.ArgumentParser:
     )
     d.add_argument("--camera", choices=CAMERAS, default="driver", help="first camera (C cycles)")
     d.add_argument("--size", type=_size, default=(1280, 720), help="window size WxH (default 1280x720)")
-    d.add_argument("--fps", type=float, default=30.0, help="frames per second at most (default 30)")
+    d.add_argument("--fps", type=float, default=60.0, help="frames per second at most (default 60)")
     d.add_argument("--no-smooth", action="store_true", help="show each step as it is (no interpolation)")
     d.add_argument("--fullscreen", action="store_true")
     d.add_argument("--quiet", action="store_true", help="print the result as JSON only")

@@ -40,7 +40,10 @@ class DriveParams:
     width: int = 1280  # [px] window and render size
     height: int = 720  # [px]
     camera: str = "driver"  # first camera: 'driver' | 'chase' | 'top'
-    fps: float = 30.0  # [1/s] frames drawn per wall-clock second at most (by the viewer process)
+    # [1/s] frames drawn per wall-clock second at most, by the viewer process (on its own core: with a cap of
+    # 30 the frame rate fell to 27-28 FPS when other jobs shared the 2 cores, with 60 it stayed at 40-56 FPS
+    # and the simulation at real time; BENCHMARKS.md, section render)
+    fps: float = 60.0
     smooth: bool = True  # interpolate between steps (one step of display latency); False: the newest step
     max_lag_s: float = 0.5  # [s] behind the wall clock by more than this: drop the backlog
     fullscreen: bool = False

@@ -51,7 +51,7 @@ class ViewerParams:
     height: int = 720  # [px]
     title: str = "cosim drive"
     fullscreen: bool = False
-    fps: float = 30.0  # [1/s] frames drawn per wall-clock second at most
+    fps: float = 60.0  # [1/s] frames drawn per wall-clock second at most
     smooth: bool = True  # interpolate between steps (adds one step of display latency)
     camera: str = "driver"
     hud: bool = True
