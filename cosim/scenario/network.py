@@ -263,9 +263,11 @@ def tls_layout_patches(net) -> list[str]:
         if any(_shared_minor_left(lane, minor) for lane in lanes):
             node = next(iter(nodes))
             x, y = node.getCoord()[:2]
-            # a new light id: netconvert keeps a loaded plan for the old one whatever tlLayout says
+            # a new light id: netconvert keeps a loaded plan for the old one whatever tlLayout says. Fixed
+            # time: gap-actuated, a saturated approach holds every green to maxDur (a 4 x 53-s cycle at a
+            # four-arm junction); plain SUMO on Krems (600 s) teleported 2.8 % of its vehicles, < 2 % fixed
             patches.append(f'    <node id={quoteattr(node.getID())} x="{x:.2f}" y="{y:.2f}" type="traffic_light" '
-                           f'tl={quoteattr(tls.getID() + "_incoming")} tlType="{TLS_TYPE}" tlLayout="incoming"/>')  # fmt: skip
+                           f'tl={quoteattr(tls.getID() + "_incoming")} tlType="static" tlLayout="incoming"/>')  # fmt: skip
     return patches
 
 
