@@ -35,9 +35,15 @@ class RoutePath:
     """The route as one lane centre-line polyline with arc lengths, its stop lines and speed limits."""
 
     def __init__(
-        self, xy, stop_lines: list[StopLine] = (), limits: list[tuple[float, float]] = ((0.0, 13.89),)
+        self,
+        xy,
+        stop_lines: list[StopLine] = (),
+        limits: list[tuple[float, float]] = ((0.0, 13.89),),
+        lanes: dict[str, int] | None = None,
     ):
-        """``xy``: (N, 2) centre-line points; ``limits``: (arc position where it starts, speed [m/s])."""
+        """``xy``: (N, 2) centre-line points; ``limits``: (arc position where it starts, speed [m/s]);
+        ``lanes``: edge id -> index of the lane the path takes on it (where it leaves the edge)."""
+        self.lanes = dict(lanes or {})
         xy = np.asarray(xy, dtype=np.float64)
         keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
         self.xy = xy[keep]
@@ -58,6 +64,7 @@ class RoutePath:
         limits: list[tuple[float, float]] = []  # (s where it starts, speed)
         roundabout_edges = {e for r in net.getRoundabouts() for e in r.getEdges()}
         entry_lane = None
+        lanes: dict[str, int] = {}
         for i, eid in enumerate(route):
             edge = net.getEdge(eid)
             nxt = net.getEdge(route[i + 1]) if i + 1 < len(route) else None
@@ -70,6 +77,7 @@ class RoutePath:
                 conns, key=lambda c: (abs(c.getFromLane().getIndex() - here), c.getFromLane().getIndex())
             )
             lane = conns[0].getFromLane() if conns else (entry_lane or edge.getLane(0))
+            lanes.setdefault(eid, lane.getIndex())
             shape = [tuple(p[:2]) for p in lane.getShape()]
             if (
                 entry_lane is not None and entry_lane is not lane and line.pts
@@ -87,7 +95,7 @@ class RoutePath:
                 if via:
                     line.extend([tuple(p[:2]) for p in net.getLane(via).getShape()])
                 entry_lane = c.getToLane()
-        return cls(line.pts, stop_lines, limits)
+        return cls(line.pts, stop_lines, limits, lanes)
 
     def project(self, x: float, y: float, near_s: float | None = None) -> tuple[float, float]:
         """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit

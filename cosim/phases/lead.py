@@ -3,6 +3,7 @@ considerate human leader, so the participant spends the drive following it.
 
 - It starts 20 m ahead of the ego at the first step (``Simulation._place_ego``) and keeps to the ego's
   route, which ``cosim.phases.route`` extends for both as they drive.
+- It drives in the lanes the ego's route path takes (``RoutePath.lanes``), not in SUMO's own choice.
 - It drives a little below the limit (``sumo_bridge.LEAD_SPEED_FACTOR``) and never lets the gap along
   the route grow beyond ``wait_beyond_m``: its speed is capped at the ego's plus (wait_beyond_m - gap) /
   ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
@@ -20,8 +21,9 @@ considerate human leader, so the participant spends the drive following it.
   is still there ``DIVERT_AFTER_S`` later and its route would keep it on the lead's way, it turns off at the
   next junction it can (``cut_in_diverted``), as a car in front of a confederate lead would eventually do:
   otherwise one cut-in costs the rest of the drive its following task (seen on Krems: 400 s behind one
-  SCV that shared the lead's route). Meanwhile the lead keeps that car, not the ego behind it, within
-  ``wait_beyond_m``: waiting for the ego would make it crawl and hold the car (and the ego) back.
+  SCV that shared the lead's route). Meanwhile the lead keeps that car within ``wait_beyond_m`` and the
+  ego within ``BETWEEN_ALLOWANCE`` times that: waiting for the ego at ``wait_beyond_m`` would make it
+  crawl and hold the car (and the ego) back, keeping only the car close would lose the ego.
 
 Its speed is only ever capped (SUMO's car following, right of way and lights still hold it back).
 """
@@ -50,9 +52,20 @@ STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
 # between it and the ego
 YIELD_STATES = "sw=mg"
 LEAD_FOLLOWER_GAP_FACTOR = 1.2  # the follow-up headway the lead leaves the ego: a cautious participant's
+LANE_HOLD_S = 1.0  # the lead is told the ego's lane every step, for this long [s]
+# while cars are between the lead and the ego, the lead keeps the car behind it within wait_beyond_m and the
+# ego within this many times wait_beyond_m: room for the cars between (waiting for the ego at wait_beyond_m
+# made the lead crawl and hold the car between, and so the ego, back), yet the lead never leaves the ego
+# behind for good (keeping only its own follower close, it lost the ego on Helsinki after two cut-ins)
+BETWEEN_ALLOWANCE = 2.0
 DIVERT_AFTER_S = 5.0  # a vehicle between the lead and the ego this long is sent off the lead's way [s]
 DIVERT_AHEAD_M = 40.0  # ... at a junction at least this far ahead of it, room to pick its lane [m]
 DIVERT_RETRY_S = 5.0  # when no junction offers a way out yet, ask again after this long [s]
+
+
+def _closing_cap(v_behind: float, gap_m: float, limit_m: float) -> float:
+    """Speed that lets a car ``gap_m`` behind at ``v_behind`` close to ``limit_m`` in about CLOSE_TIME_S."""
+    return max(0.0, v_behind + (limit_m - gap_m) / CLOSE_TIME_S)
 
 
 class LeadBridge(FoesBridge, Protocol):
@@ -73,6 +86,8 @@ class LeadBridge(FoesBridge, Protocol):
     def route_ahead(self, vid: str) -> list[str]: ...
 
     def divert(self, vid: str, keep_off: set[str], min_ahead_m: float) -> str | None: ...
+
+    def keep_lane(self, vid: str, lane_index: int, duration_s: float) -> None: ...
 
 
 class EgoOnPath(Protocol):
@@ -112,15 +127,19 @@ class LeadVehicle:
         if lead is None or ego is None:
             return
         self.gap_m = self._gap(w, lead, ego)
+        self._keep_to_the_egos_lane(w, lead)
         self._log_cut_in()
         self._divert_cut_in(w)
         v_ego = float(w.speed_mps[ego])
         caps = []
+        ego_limit_m = self.wait_beyond_m * (BETWEEN_ALLOWANCE if self._between is not None else 1.0)
         if self.wait_beyond_m > 0:
-            v_f, gap_f = self._waited_for(w, v_ego)
-            caps.append(max(0.0, v_f + (self.wait_beyond_m - gap_f) / CLOSE_TIME_S))
+            caps.append(_closing_cap(v_ego, self.gap_m, ego_limit_m))
+            between = self._car_between(w)
+            if between is not None:
+                caps.append(_closing_cap(*between, self.wait_beyond_m))
         holds = [c for c in (self._light_cap(w, v_ego), self._yield_cap(w)) if c is not None]
-        self.waiting = bool(holds) or (self.wait_beyond_m > 0 and self.gap_m > self.wait_beyond_m)
+        self.waiting = bool(holds) or (self.wait_beyond_m > 0 and self.gap_m > ego_limit_m)
         cap = min(caps + holds) if caps or holds else math.inf
         if cap < self.bridge.lane_speed_limit(LEAD_ID):
             self.bridge.cap_speed(LEAD_ID, cap)
@@ -129,16 +148,26 @@ class LeadVehicle:
             self.bridge.cap_speed(LEAD_ID, None)
             self._capped = False
 
-    def _waited_for(self, w: World, v_ego: float) -> tuple[float, float]:
-        """(speed [m/s], gap [m]) of whom the lead waits for: the ego, or while a car is between them that
-        car. Waiting for the ego behind it would make the lead crawl and hold that car (and so the ego)
-        back until the car turns off."""
-        if self._between is not None:
-            follower = self.bridge.follower(LEAD_ID, self.wait_beyond_m * 3)
-            slot = w.slot_of.get(follower[0]) if follower else None
-            if slot is not None:
-                return float(w.speed_mps[slot]), follower[1]
-        return v_ego, self.gap_m
+    def _keep_to_the_egos_lane(self, w: World, lead: int) -> None:
+        """Drive in the lane the ego's path takes on this edge: SUMO's own lane choice (its strategic look
+        ahead, overtaking, keeping right) put the lead in another lane than the ego on multi-lane roads,
+        where the ego passed it while it waited at a line (Helsinki, experiment: the lead was the ego's
+        leader in 0-31 % of each phase)."""
+        path = self.ego.path if self.ego is not None else None
+        code = int(w.edge_code[lead])
+        if path is None or code < 0:
+            return
+        lane = path.lanes.get(w.edge_names[code])
+        if lane is not None:
+            self.bridge.keep_lane(LEAD_ID, lane, LANE_HOLD_S)
+
+    def _car_between(self, w: World) -> tuple[float, float] | None:
+        """(speed [m/s], gap [m]) of the car right behind the lead while a car is between it and the ego."""
+        if self._between is None:
+            return None
+        follower = self.bridge.follower(LEAD_ID, self.wait_beyond_m * 3)
+        slot = w.slot_of.get(follower[0]) if follower else None
+        return (float(w.speed_mps[slot]), follower[1]) if slot is not None else None
 
     def _gap(self, w: World, lead: int, ego: int) -> float:
         """Bumper gap along the ego's route path (straight line when the ego has no path)."""

@@ -494,6 +494,11 @@ class SumoBridge:
         links = veh.getNextLinks(vid)  # (lane, hasPrio, isOpen, hasFoe, via, state, direction, length)
         return bool(links) and not links[0][2]
 
+    def keep_lane(self, vid: str, lane_index: int, duration_s: float) -> None:
+        """Have SUMO move the vehicle to, and hold it in, lane ``lane_index`` of its edge for ``duration_s``
+        (its lane-change model still waits for a safe gap)."""
+        self._sumo.vehicle.changeLane(vid, lane_index, duration_s)
+
     def next_link(self, vid: str) -> tuple[str, float, str] | None:
         """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None
         inside a junction or at the end of its route."""

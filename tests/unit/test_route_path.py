@@ -126,6 +126,7 @@ def test_the_path_keeps_the_lane_it_arrives_on_when_that_lane_leads_on():
     path = RoutePath.from_network(_Net(a, b, c), ["a", "b", "c"])
     on_b = path.xy[(path.xy[:, 0] > 100) & (path.xy[:, 0] < 200)]
     assert np.allclose(on_b[:, 1], -6.4)
+    assert path.lanes == {"a": 2, "b": 2, "c": 2}  # the lead is told these
 
 
 def test_the_path_changes_to_the_lane_that_leads_on():

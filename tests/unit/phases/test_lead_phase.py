@@ -26,6 +26,7 @@ class FakeBridge:
         self.foes: list[tuple[str, float, float, float, bool]] = []
         self.diverted: list[tuple[str, set]] = []
         self.exit_edge: str | None = "side"
+        self.lanes: list[int] = []  # lanes the lead was told to keep to
 
     def cap_speed(self, vid, speed):
         assert vid == LEAD_ID
@@ -56,6 +57,10 @@ class FakeBridge:
     def divert(self, vid, keep_off, min_ahead_m):
         self.diverted.append((vid, keep_off))
         return self.exit_edge
+
+    def keep_lane(self, vid, lane_index, duration_s):
+        assert vid == LEAD_ID
+        self.lanes.append(lane_index)
 
 
 class FakeEgo:
@@ -224,7 +229,23 @@ def test_with_a_car_between_them_the_lead_keeps_that_car_close_instead_of_crawli
     sim.ego.sees("scv7")
     sim.bridge.follower = lambda vid, d: ("scv7", 12.0)  # right behind the lead at 10 m/s
     lead.step(sim.world)
-    assert sim.bridge.caps[-1] is None  # 10 + (40 - 12) / 5 = 15.6 m/s: above the limit, not capped
+    # the car behind the lead allows 10 + (40 - 12) / 5 = 15.6 m/s; the ego, 60 m behind with a car between
+    # (allowed 2 x 40 m), 3 + (80 - 60) / 5 = 7 m/s: the lead eases off, it does not stand
+    assert sim.bridge.caps[-1] == pytest.approx(7.0)
+
+
+def test_with_a_car_between_them_the_lead_still_waits_for_an_ego_left_far_behind():
+    """Keeping only the car behind it close, the lead lost the ego for good after two cut-ins (Helsinki)."""
+    sim = fake_sim(gap_m=120.0, ego_speed=8.0)
+    scv = sim.world.add("scv7", is_ego=False)
+    sim.world.speed_mps[scv] = 10.0
+    sim.bridge.follower = lambda vid, d: ("scv7", 12.0)
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(sim.world)
+    sim.ego.sees("scv7")
+    lead.step(sim.world)
+    assert sim.bridge.caps[-1] < 8.0 and lead.waiting  # 8 + (80 - 120) / 5 = 0: slower than the ego
 
 
 def test_the_gap_is_measured_along_the_egos_route_path():
@@ -252,3 +273,18 @@ def test_nothing_happens_until_both_are_in_and_close_is_safe():
     lead.step(sim.world)
     assert sim.bridge.caps == [] and sim.events == [] and math.isnan(lead.gap_m)
     lead.close()
+
+
+def test_the_lead_keeps_to_the_lane_the_egos_path_takes():
+    """On a multi-lane road the lead drives in the ego's lane, not wherever SUMO's lane choice puts it."""
+    sim = fake_sim(gap_m=20.0, ego_speed=8.0)
+    w = sim.world
+    sim.ego.s_front_m = 0.0
+    sim.ego.path = RoutePath([(0.0, -10.0), (0.0, 200.0)], lanes={"b": 1})
+    lead = _lead(sim)
+    w.edge_code[w.slot_of[LEAD_ID]] = w.intern_edge("a")  # an edge the path does not name: left alone
+    lead.step(w)
+    assert sim.bridge.lanes == []
+    w.edge_code[w.slot_of[LEAD_ID]] = w.intern_edge("b")
+    lead.step(w)
+    assert sim.bridge.lanes == [1]
