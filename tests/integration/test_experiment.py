@@ -35,11 +35,6 @@ def short_experiment(tmp_path_factory):
     return out, summary
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 15.5: SCVs still collide at Krems 860978174 (a left turn that "
-    "runs beside the straight after crossing it; SUMO sees no conflict there)",
-)
 def test_no_vehicle_collides_in_the_short_experiment(short_experiment):
     _, summary = short_experiment
     assert [part["run"]["collisions"] for part in summary["participants"]] == [0, 0]
