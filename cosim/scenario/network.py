@@ -62,7 +62,7 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         "--tls.join", "true",
         # gap-actuated plans (SUMO docs, Simulation/Traffic_Lights, "Actuated Traffic Lights": a green ends
         # early when its detectors see a gap, up to maxDur), deterministic, as most town signals are; with
-        # fixed 90-s cycles Helsinki's dense signals halved the ego's distance in 300 s
+        # fixed 90-s cycles the ego drove 1144 m on Helsinki in 300 s (seed 1), 1536 m gap-actuated
         "--tls.default-type", TLS_TYPE,
         # opposite approaches share a green (netconvert's default layout); a left turn without its own lane
         # gets its own approach green instead (tls_layout_patches), not a permissive green
