@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from fake_net import Conn, Edge, Net
 
 from cosim.driver.route import RoutePath
 
@@ -36,102 +37,21 @@ def test_a_second_point_tracked_near_its_own_arc_position_leaves_the_ego_project
     assert p._last_s == s_ego
 
 
-class _Node:
-    def __init__(self, nid, xy):
-        self.nid, self.xy = nid, xy
-
-    def getID(self):  # noqa: N802 (sumolib's names)
-        return self.nid
-
-    def getCoord(self):  # noqa: N802
-        return self.xy
-
-
-class _Lane:
-    def __init__(self, index, shape):
-        self.index, self.shape = index, shape
-
-    def getIndex(self):  # noqa: N802
-        return self.index
-
-    def getShape(self):  # noqa: N802
-        return self.shape
-
-    def getLength(self):  # noqa: N802
-        return float(np.hypot(*np.subtract(self.shape[-1], self.shape[0])))
-
-    def getSpeed(self):  # noqa: N802
-        return 13.89
-
-
-class _Conn:
-    def __init__(self, from_lane, to_lane):
-        self.from_lane, self.to_lane = from_lane, to_lane
-
-    def getFromLane(self):  # noqa: N802
-        return self.from_lane
-
-    def getToLane(self):  # noqa: N802
-        return self.to_lane
-
-    def getState(self):  # noqa: N802
-        return "M"
-
-    def getDirection(self):  # noqa: N802
-        return "s"
-
-    def getViaLaneID(self):  # noqa: N802
-        return None
-
-
-class _Edge:
-    def __init__(self, eid, x0, x1, lanes):
-        self.eid, self.lanes, self.out = (
-            eid,
-            [_Lane(i, [(x0, -3.2 * i), (x1, -3.2 * i)]) for i in range(lanes)],
-            {},
-        )
-        self.node = _Node(f"n{eid}", (x1, 0.0))
-
-    def getID(self):  # noqa: N802
-        return self.eid
-
-    def getOutgoing(self):  # noqa: N802
-        return self.out
-
-    def getToNode(self):  # noqa: N802
-        return self.node
-
-    def getLane(self, i):  # noqa: N802
-        return self.lanes[i]
-
-
-class _Net:
-    def __init__(self, *edges):
-        self.edges = {e.eid: e for e in edges}
-
-    def getEdge(self, eid):  # noqa: N802
-        return self.edges[eid]
-
-    def getRoundabouts(self):  # noqa: N802
-        return []
-
-
 def test_the_path_keeps_the_lane_it_arrives_on_when_that_lane_leads_on():
     """Arriving on lane 2 of a three-lane road whose every lane continues, the path stays on lane 2 instead
     of crossing two lanes (blind to the cars beside it) to reach lane 0."""
-    a, b, c = _Edge("a", 0, 100, 3), _Edge("b", 100, 200, 3), _Edge("c", 200, 300, 3)
-    a.out[b] = [_Conn(a.lanes[2], b.lanes[2])]
-    b.out[c] = [_Conn(b.lanes[i], c.lanes[i]) for i in range(3)]
-    path = RoutePath.from_network(_Net(a, b, c), ["a", "b", "c"])
+    a, b, c = Edge.straight("a", 0, 100, 3), Edge.straight("b", 100, 200, 3), Edge.straight("c", 200, 300, 3)
+    a.out[b] = [Conn(a.lanes[2], b.lanes[2])]
+    b.out[c] = [Conn(b.lanes[i], c.lanes[i]) for i in range(3)]
+    path = RoutePath.from_network(Net([a, b, c]), ["a", "b", "c"])
     on_b = path.xy[(path.xy[:, 0] > 100) & (path.xy[:, 0] < 200)]
     assert np.allclose(on_b[:, 1], -6.4)
     assert path.lanes == {"a": 2, "b": 2, "c": 2}  # the lead is told these
 
 
 def test_the_path_changes_to_the_lane_that_leads_on():
-    a, b, c = _Edge("a", 0, 100, 3), _Edge("b", 100, 200, 3), _Edge("c", 200, 300, 1)
-    a.out[b] = [_Conn(a.lanes[2], b.lanes[2])]
-    b.out[c] = [_Conn(b.lanes[0], c.lanes[0])]
-    path = RoutePath.from_network(_Net(a, b, c), ["a", "b", "c"])
+    a, b, c = Edge.straight("a", 0, 100, 3), Edge.straight("b", 100, 200, 3), Edge.straight("c", 200, 300, 1)
+    a.out[b] = [Conn(a.lanes[2], b.lanes[2])]
+    b.out[c] = [Conn(b.lanes[0], c.lanes[0])]
+    path = RoutePath.from_network(Net([a, b, c]), ["a", "b", "c"])
     assert np.isclose(path.xy[path.xy[:, 0] > 150][0, 1], 0.0)

@@ -218,16 +218,20 @@ def test_a_standing_foe_counts_unless_something_holds_it_back():
     assert priority_gap_s(sim.world, sim.bridge, LEAD_ID, 5.0) < 4.0
 
 
+def _scv7_right_behind_the_lead(sim) -> None:
+    """scv7 at 10 m/s, 12 m behind the lead (the bridge's answer for the lead's follower)."""
+    sim.world.speed_mps[sim.world.add("scv7", is_ego=False)] = 10.0
+    sim.bridge.follower = lambda vid, d: ("scv7", 12.0)
+
+
 def test_with_a_car_between_them_the_lead_keeps_that_car_close_instead_of_crawling():
     sim = fake_sim(gap_m=60.0, ego_speed=3.0)
-    scv = sim.world.add("scv7", is_ego=False)
-    sim.world.speed_mps[scv] = 10.0
+    _scv7_right_behind_the_lead(sim)
     lead = _lead(sim)
     sim.ego.sees(LEAD_ID)
     lead.step(sim.world)
     assert sim.bridge.caps[-1] == 0.0  # 3 + (40 - 60) / 5 < 0: the lead stands for the lagging ego
     sim.ego.sees("scv7")
-    sim.bridge.follower = lambda vid, d: ("scv7", 12.0)  # right behind the lead at 10 m/s
     lead.step(sim.world)
     # the car behind the lead allows 10 + (40 - 12) / 5 = 15.6 m/s; the ego, 60 m behind with a car between
     # (allowed 2 x 40 m), 3 + (80 - 60) / 5 = 7 m/s: the lead eases off, it does not stand
@@ -237,9 +241,7 @@ def test_with_a_car_between_them_the_lead_keeps_that_car_close_instead_of_crawli
 def test_with_a_car_between_them_the_lead_still_waits_for_an_ego_left_far_behind():
     """Keeping only the car behind it close, the lead lost the ego for good after two cut-ins (Helsinki)."""
     sim = fake_sim(gap_m=120.0, ego_speed=8.0)
-    scv = sim.world.add("scv7", is_ego=False)
-    sim.world.speed_mps[scv] = 10.0
-    sim.bridge.follower = lambda vid, d: ("scv7", 12.0)
+    _scv7_right_behind_the_lead(sim)
     lead = _lead(sim)
     sim.ego.sees(LEAD_ID)
     lead.step(sim.world)

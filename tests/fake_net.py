@@ -1,0 +1,142 @@
+"""A hand-built stand-in for the sumolib network objects cosim reads (nodes, edges, lanes, connections,
+traffic lights), for unit tests of code that walks a network without building one with netconvert.
+Only the getters cosim calls exist; their names are sumolib's."""
+
+# ruff: noqa: N802 (sumolib's method names)
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class Node:
+    def __init__(self, nid: str, xy: tuple[float, float] = (0.0, 0.0)):
+        self.nid, self.xy = nid, xy
+
+    def getID(self):
+        return self.nid
+
+    def getCoord(self):
+        return self.xy
+
+
+class Lane:
+    """Lane ``index`` of ``edge`` (set by Edge), along ``shape``, with its outgoing connections."""
+
+    def __init__(self, index: int = 0, shape=((0.0, 0.0), (1.0, 0.0)), conns=()):
+        self.index, self.shape, self.conns, self.edge = index, list(shape), list(conns), None
+
+    def getIndex(self):
+        return self.index
+
+    def getShape(self):
+        return self.shape
+
+    def getLength(self):
+        return float(np.hypot(*np.subtract(self.shape[-1], self.shape[0])))
+
+    def getSpeed(self):
+        return 13.89
+
+    def getOutgoing(self):
+        return self.conns
+
+    def getEdge(self):
+        return self.edge
+
+
+class Conn:
+    def __init__(
+        self, from_lane=None, to_lane=None, *, direction: str = "s", link: int = -1, state: str = "M"
+    ):
+        self.from_lane, self.to_lane, self.direction, self.link, self.state = (
+            from_lane, to_lane, direction, link, state)  # fmt: skip
+
+    def getFromLane(self):
+        return self.from_lane
+
+    def getToLane(self):
+        return self.to_lane
+
+    def getDirection(self):
+        return self.direction
+
+    def getTLLinkIndex(self):
+        return self.link
+
+    def getState(self):
+        return self.state
+
+    def getViaLaneID(self):
+        return None
+
+
+class Edge:
+    """An edge ending at ``node`` with ``lanes``; ``out`` maps a next edge to the connections into it."""
+
+    def __init__(self, eid: str, lanes: list[Lane], node: Node):
+        self.eid, self.lanes, self.node, self.out = eid, lanes, node, {}
+        for lane in lanes:
+            lane.edge = self
+
+    @classmethod
+    def straight(cls, eid: str, x0: float, x1: float, n_lanes: int) -> Edge:
+        """An eastbound edge from x0 to x1, lane 0 on y = 0 and each further lane 3.2 m to the south."""
+        lanes = [Lane(i, [(x0, -3.2 * i), (x1, -3.2 * i)]) for i in range(n_lanes)]
+        return cls(eid, lanes, Node(f"n{eid}", (x1, 0.0)))
+
+    def getID(self):
+        return self.eid
+
+    def getOutgoing(self):
+        return self.out
+
+    def getToNode(self):
+        return self.node
+
+    def getLane(self, i):
+        return self.lanes[i]
+
+
+class _Phase:
+    def __init__(self, state: str):
+        self.state = state
+
+
+class _Program:
+    def __init__(self, states: list[str]):
+        self.phases = [_Phase(s) for s in states]
+
+    def getPhases(self):
+        return self.phases
+
+
+class TrafficLight:
+    """Light ``tid`` over the connections of ``lanes`` (their link indices), one programme of ``states``."""
+
+    def __init__(self, tid: str, lanes: list[Lane], states: list[str]):
+        self.tid, self.lanes, self.states = tid, lanes, states
+
+    def getID(self):
+        return self.tid
+
+    def getConnections(self):
+        return [(lane, c.getToLane(), c.getTLLinkIndex()) for lane in self.lanes for c in lane.getOutgoing()]
+
+    def getPrograms(self):
+        return {"0": _Program(self.states)}
+
+
+class Net:
+    def __init__(self, edges=(), traffic_lights=()):
+        self.edges = {e.eid: e for e in edges}
+        self.traffic_lights = list(traffic_lights)
+
+    def getEdge(self, eid):
+        return self.edges[eid]
+
+    def getRoundabouts(self):
+        return []
+
+    def getTrafficLights(self):
+        return self.traffic_lights
