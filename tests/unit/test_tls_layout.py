@@ -25,7 +25,10 @@ def test_a_permissive_left_sharing_its_lane_gets_one_green_per_approach():
 
 def test_a_left_turn_with_its_own_lane_keeps_the_plan():
     through, left = approach(J, ("s", 0), ("r", 1)), approach(J, ("l", 2))
-    assert tls_layout_patches(Net(traffic_lights=[TrafficLight("j", [through, left], ["GGg", "rrG", "rrr"])])) == []
+    assert (
+        tls_layout_patches(Net(traffic_lights=[TrafficLight("j", [through, left], ["GGg", "rrG", "rrr"])]))
+        == []
+    )
 
 
 def test_a_protected_left_on_a_shared_lane_keeps_the_plan():
