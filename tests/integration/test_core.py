@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import libsumo
 import pytest
@@ -48,25 +49,55 @@ def test_same_seed_gives_byte_identical_traces_and_another_seed_does_not(tmp_pat
 
 def _start_run(tmp_path, duration: int) -> tuple[subprocess.Popen, object]:
     out = tmp_path / "run"
+    # output to files, not pipes nobody reads while the run goes on (a full pipe would stop it); its stacks
+    # on SIGABRT (faulthandler) if it ever hangs
     proc = subprocess.Popen(
         [sys.executable, "-m", "cosim.cli", "run", "--map", str(shared_map("munich")), "--density", "low",
          "--duration", str(duration), "--out", str(out), "--quiet"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=os.environ.copy(),
+        stdout=(tmp_path / "stdout").open("wb"), stderr=(tmp_path / "stderr").open("wb"),
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"},
     )  # fmt: skip
     mcap = out / "run.mcap"
     deadline = time.time() + 120
     while time.time() < deadline and (not mcap.exists() or mcap.stat().st_size < 50_000):
+        if proc.poll() is not None:
+            pytest.fail(f"the run ended early ({proc.returncode}): {_tail(tmp_path / 'stderr')}")
         time.sleep(0.2)
-    assert mcap.exists(), proc.stderr.read().decode() if proc.poll() is not None else "no log appeared"
+    assert mcap.exists(), "no log appeared"
     time.sleep(1.0)
     return proc, mcap
+
+
+def _tail(path, n: int = 6000) -> str:
+    return path.read_bytes()[-n:].decode(errors="replace")
+
+
+def _wait_or_dump(proc: subprocess.Popen, tmp_path, timeout_s: float) -> int:
+    """The run's exit code; if it does not end in time, fail with where it (and its log writer) hung."""
+    try:
+        return proc.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+        kids = children.read_text().split() if children.exists() else []
+        for pid in [proc.pid, *map(int, kids)]:
+            try:
+                os.kill(pid, signal.SIGABRT)
+            except ProcessLookupError:
+                pass
+        try:
+            proc.wait(15)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+        pytest.fail(
+            f"the run did not end {timeout_s:.0f} s after the signal; its stacks:\n{_tail(tmp_path / 'stderr')}"
+        )
 
 
 @pytest.mark.slow  # the same path as SIGTERM, which test_outputs.py checks on a small map
 def test_ctrl_c_ends_cleanly_with_a_complete_log(tmp_path):
     proc, mcap = _start_run(tmp_path, 3000)
     proc.send_signal(signal.SIGINT)
-    assert proc.wait(60) == 130
+    assert _wait_or_dump(proc, tmp_path, 60) == 130, _tail(tmp_path / "stderr")
     log = read(mcap)
     assert not log.truncated
     assert log.counts["/ego/state"] > 10 and log.metadata["cosim"]["seed"]
