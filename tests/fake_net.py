@@ -10,14 +10,25 @@ import numpy as np
 
 
 class Node:
-    def __init__(self, nid: str, xy: tuple[float, float] = (0.0, 0.0)):
-        self.nid, self.xy = nid, xy
+    """A junction of ``type`` (SUMO's junction types); edges add themselves to its incoming / outgoing."""
+
+    def __init__(self, nid: str, xy: tuple[float, float] = (0.0, 0.0), type: str = "traffic_light"):
+        self.nid, self.xy, self.type, self.incoming, self.outgoing = nid, xy, type, [], []
 
     def getID(self):
         return self.nid
 
     def getCoord(self):
         return self.xy
+
+    def getType(self):
+        return self.type
+
+    def getIncoming(self):
+        return self.incoming
+
+    def getOutgoing(self):
+        return self.outgoing
 
 
 class Lane:
@@ -72,10 +83,15 @@ class Conn:
 
 
 class Edge:
-    """An edge ending at ``node`` with ``lanes``; ``out`` maps a next edge to the connections into it."""
+    """An edge from ``from_node`` (default: a priority junction of its own) to ``node`` with ``lanes``;
+    ``out`` maps a next edge to the connections into it."""
 
-    def __init__(self, eid: str, lanes: list[Lane], node: Node):
-        self.eid, self.lanes, self.node, self.out = eid, lanes, node, {}
+    def __init__(self, eid: str, lanes: list[Lane], node: Node, *, from_node: Node | None = None,
+                 length_m: float = 100.0):  # fmt: skip
+        self.eid, self.lanes, self.node, self.out, self.length_m = eid, lanes, node, {}, length_m
+        self.from_node = from_node if from_node is not None else Node(f"from_{eid}", type="priority")
+        node.incoming.append(self)
+        self.from_node.outgoing.append(self)
         for lane in lanes:
             lane.edge = self
 
@@ -93,6 +109,12 @@ class Edge:
 
     def getToNode(self):
         return self.node
+
+    def getFromNode(self):
+        return self.from_node
+
+    def getLength(self):
+        return self.length_m
 
     def getLane(self, i):
         return self.lanes[i]

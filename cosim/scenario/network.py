@@ -33,7 +33,9 @@ from cosim.sumo_bridge.network import read_network
 from cosim.sumo_bridge.tools import ToolRun, run_tool
 
 OPTIONS_DIR = Path(__file__).parent / "netconvert"
-MAX_APPROACH_SEARCH_M = 150.0  # a sign node farther than this from its junction along the way is not used
+MAX_APPROACH_SEARCH_M = 150.0
+# a road shorter than this between two lights holds a queue of at most ~8 cars per lane (7.5 m each)
+SHORT_LINK_M = 60.0  # a sign node farther than this from its junction along the way is not used
 
 # Options shared by both passes (junction geometry, turn speeds): pass 2 must not recompute them differently.
 COMMON_OPTIONS = [
@@ -250,12 +252,15 @@ def tls_layout_patches(net) -> list[str]:
     also holds up every car behind it in the lane. netconvert adds a protected left phase only for a left
     turn with its own lane (SUMO docs, Simulation/Traffic_Lights, "Automatically Generated TLS-Programs").
     Lights that control several junctions (tls.join) keep their plan: one junction's layout cannot change
-    alone."""
+    alone. So does a light with another light at the end of a short road (``SHORT_LINK_M``): a green for one
+    approach at a time is too short to empty a queue into a road that holds a few cars and that the
+    neighbour's plan empties at its own times (Helsinki 30471502#2 into the 30-m 30259739#0: both fixed
+    90-s cycles, the queue stood through every green for whole experiment phases)."""
     patches = []
     for tls in sorted(net.getTrafficLights(), key=lambda t: t.getID()):
         links = tls.getConnections()
         nodes = {inl.getEdge().getToNode() for inl, _, _ in links}
-        if len(nodes) != 1:
+        if len(nodes) != 1 or _short_link_to_a_light(next(iter(nodes))):
             continue
         phases = [ph.state for prog in tls.getPrograms().values() for ph in prog.getPhases()]
         minor = {i for _, _, i in links if any(state[i] == "g" for state in phases)}
@@ -269,6 +274,15 @@ def tls_layout_patches(net) -> list[str]:
             patches.append(f'    <node id={quoteattr(node.getID())} x="{x:.2f}" y="{y:.2f}" type="traffic_light" '
                            f'tl={quoteattr(tls.getID() + "_incoming")} tlType="static" tlLayout="incoming"/>')  # fmt: skip
     return patches
+
+
+def _short_link_to_a_light(node) -> bool:
+    """Whether a road shorter than SHORT_LINK_M joins ``node`` to another signalised junction."""
+    ends = [(e, e.getFromNode()) for e in node.getIncoming()] + [
+        (e, e.getToNode()) for e in node.getOutgoing()
+    ]
+    return any(e.getLength() < SHORT_LINK_M and other is not node and other.getType() == "traffic_light"
+               for e, other in ends)  # fmt: skip
 
 
 def _shared_minor_left(lane, minor_links: set[int]) -> bool:

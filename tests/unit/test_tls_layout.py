@@ -7,10 +7,10 @@ from fake_net import Conn, Edge, Lane, Net, Node, TrafficLight
 from cosim.scenario.network import tls_layout_patches
 
 
-def approach(node: Node, *conns: tuple[str, int]) -> Lane:
+def approach(node: Node, *conns: tuple[str, int], **edge) -> Lane:
     """A lane into ``node`` whose connections are (direction, link index of the light)."""
     lane = Lane(conns=[Conn(direction=d, link=i) for d, i in conns])
-    Edge("in", [lane], node)
+    Edge("in", [lane], node, **edge)
     return lane
 
 
@@ -39,3 +39,15 @@ def test_a_protected_left_on_a_shared_lane_keeps_the_plan():
 def test_a_light_over_several_junctions_keeps_its_plan():
     a, b = approach(J, ("s", 0), ("l", 1)), approach(Node("k"), ("s", 2))
     assert tls_layout_patches(Net(traffic_lights=[TrafficLight("joined", [a, b], ["GgG", "rrr"])])) == []
+
+
+def test_a_light_a_short_road_away_from_another_keeps_its_plan():
+    """One green per approach would starve the short road between two lights (Helsinki 30259739#0)."""
+    j = Node("j2")
+    shared = approach(j, ("s", 0), ("l", 1), from_node=Node("other_light"), length_m=30.0)
+    assert tls_layout_patches(Net(traffic_lights=[TrafficLight("j2", [shared], ["Gg", "yy", "rr"])])) == []
+    far = Node("j3")
+    shared = approach(far, ("s", 0), ("l", 1), from_node=Node("other_light"), length_m=200.0)
+    assert (
+        len(tls_layout_patches(Net(traffic_lights=[TrafficLight("j3", [shared], ["Gg", "yy", "rr"])]))) == 1
+    )
