@@ -146,6 +146,9 @@ class Percept:
     junction_gap_s: float = math.inf
     junction_movement: str = "minor_through"  # HCM movement through that junction (gap_acceptance.MOVEMENTS)
     route_end_dist_m: float = math.inf  # [m] to the end of the predefined route (the driver stops there)
+    # [m] to where a vehicle crossing the route (in the junction ahead, or standing across it) will be in the
+    # ego's way when the ego gets there: the driver stops short of it
+    crossing_dist_m: float = math.inf
     sys_a_lit: bool = False  # system A: the leader's rear "keep distance" display is lit AND legible
     sys_b_gap_s: float | None = None  # system B: time gap shown in the car [s]; None = "no data" / off
     sys_b_level: WarningLevel = "none"  # system B: 'none' | 'advisory' | 'warning'
@@ -172,6 +175,7 @@ class Percept:
             "tls_dist_m",
             "sign_dist_m",
             "route_end_dist_m",
+            "crossing_dist_m",
             "junction_gap_s",
         ):
             if math.isnan(getattr(self, name)):

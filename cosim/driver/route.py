@@ -189,6 +189,12 @@ class RoutePath:
         on = (dist2[near, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
         return rows[on], s_at[on]
 
+    def direction_at(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unit vectors (x, y) of the path's direction at arc positions ``s``."""
+        ax, ay, dx, dy, seg2, seg_len = self._segments
+        k = np.clip(self.s.searchsorted(s, side="right") - 1, 0, len(seg_len) - 1)
+        return dx[k] / seg_len[k], dy[k] / seg_len[k]
+
     def speed_limit(self, s: float) -> tuple[float, float | None, float]:
         """(limit here, next different limit or None, distance to it)."""
         i = max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)

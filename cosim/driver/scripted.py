@@ -59,6 +59,7 @@ _STOPPED_MPS = 0.1  # [m/s] "full stop" at a stop sign
 _CREEP_MPS = 1.0  # [m/s] slower than this near a yield line counts as waiting there
 _WAIT_ZONE_M = 15.0  # [m] ... within this distance of the line (a queue in front of it included)
 _FOLLOW_THROUGH_M = 12.0  # [m] a leader whose rear is at most this far past the line has just entered
+_CROSSING_MARGIN_M = 1.0  # [m] the driver stops this short of a crossing car's way
 _LEADER_ACCEL_SMOOTH_S = 0.3  # [s] smoothing of the perceived leader acceleration
 _MIN_TIME_GAP_S = 0.3  # [s] the desired time gap never drops below this
 _B_MAX_ADD_S = 3.0  # [s]
@@ -158,7 +159,8 @@ class _Seen:
 
     __slots__ = (
         "t", "odo", "leader", "leader_id", "gap", "vl", "al", "limit", "next_limit", "next_limit_d", "tls", "tls_d", "tls_id",
-        "sign", "sign_d", "sign_id", "conflict", "jgap", "movement", "route_end_d", "a_lit", "b_gap", "b_level",
+        "sign", "sign_d", "sign_id", "conflict", "jgap", "movement", "route_end_d", "cross_d", "a_lit", "b_gap",
+        "b_level",
     )  # fmt: skip
 
 
@@ -346,7 +348,7 @@ class ScriptedDriver(Driver):
         )
         s.tls, s.tls_d, s.tls_id = p.tls_state, p.tls_dist_m, p.tls_id
         s.sign, s.sign_d, s.sign_id = p.sign_kind, p.sign_dist_m, p.sign_id
-        s.conflict, s.route_end_d = p.junction_conflict, p.route_end_dist_m
+        s.conflict, s.route_end_d, s.cross_d = p.junction_conflict, p.route_end_dist_m, p.crossing_dist_m
         s.jgap, s.movement = p.junction_gap_s, p.junction_movement
         s.a_lit, s.b_gap, s.b_level = p.sys_a_lit, p.sys_b_gap_s, p.sys_b_level
         return s
@@ -434,6 +436,8 @@ class ScriptedDriver(Driver):
         consider(self._curve_accel(p, v, v0, b), "curve")
         if math.isfinite(d.route_end_d):
             consider(_stop_accel(v, d.route_end_d - travelled - margin, b), "route_end")
+        if math.isfinite(d.cross_d):  # a car crossing ahead: let it through, stopping short of its way
+            consider(_stop_accel(v, d.cross_d - travelled - _CROSSING_MARGIN_M, b), "crossing")
         tls_d = d.tls_d - travelled
         if self._traffic_light(d, v, tls_d) == "stop":
             consider(_stop_accel(v, tls_d - margin, b), "tls")

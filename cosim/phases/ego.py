@@ -44,6 +44,14 @@ ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is cert
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 )
+# Crossing traffic: a vehicle in a junction (committed: SUMO let it in, maybe because the ego twin stood
+# when it decided) or standing across the ego's way, whose way crosses the route within CROSS_LOOK_M ahead,
+# predicted at constant velocity over CROSS_TIMES_S. A driver lets it through unless the ego is through first.
+CROSS_LOOK_M = 40.0
+CROSS_TIMES_S = np.arange(0.0, 3.01, 0.5)
+CROSS_MIN_SIN = math.sin(math.radians(30.0))  # nearer the route's direction: a leader or a merging car
+EGO_PULL_AWAY_MPS2 = 1.5  # the ego's arrival at the crossing is estimated accelerating at this
+CROSS_MARGIN_S = 1.0  # the ego goes first only if its rear is past the crossing this long before the car
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -256,12 +264,57 @@ class EgoController:
         rows, s_rear = self.path.vehicles_on_path(
             rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half
         )
+        kw = self._crossing(w, idx, heading, s_front, half)
         if rows.size == 0:
-            return {}
+            return kw
         k = int(np.argmin(s_rear))
         slot = int(idx[rows[k]])
-        return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
+        return {**kw, "leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
                 "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
+
+    def _crossing(self, w, idx: np.ndarray, heading: np.ndarray, s_front: float, half: float) -> dict:
+        """Where the nearest vehicle crossing the route ahead will be in the ego's way (``crossing_dist_m``;
+        see CROSS_LOOK_M). Vehicles approaching a junction are left to its right of way: only those inside
+        one (or standing across the route) are committed to their way."""
+        ego = self.car.state()
+        near = np.hypot(w.x_m[idx] - ego.x_m - self.origin[0], w.y_m[idx] - ego.y_m - self.origin[1])
+        keep = near < CROSS_LOOK_M + 30.0
+        if not keep.any():
+            return {}
+        idx, heading = idx[keep], heading[keep]
+        hx, hy = np.sin(heading), np.cos(heading)
+        speed, length = w.speed_mps[idx], w.length_m[idx]
+        codes = w.edge_code[idx]
+        in_junction = np.array([c >= 0 and w.edge_names[c].startswith(":") for c in codes.tolist()], bool)
+        # front and middle of each vehicle (SUMO's position is the front bumper) at each predicted time; a
+        # vehicle outside a junction only as it is now
+        times = np.where(in_junction[:, None], CROSS_TIMES_S[None, :], 0.0)  # (V, T)
+        ahead = speed[:, None] * times
+        xs = np.stack([w.x_m[idx, None] + hx[:, None] * (ahead - f * length[:, None]) for f in (0.0, 0.5)], 2)
+        ys = np.stack([w.y_m[idx, None] + hy[:, None] * (ahead - f * length[:, None]) for f in (0.0, 0.5)], 2)
+        rows, s_hit = self.path.vehicles_on_path(
+            xs.ravel(), ys.ravel(), s_front, s_front + CROSS_LOOK_M, half
+        )
+        if rows.size == 0:
+            return {}
+        veh, t_at = rows // xs[0].size, times.ravel()[rows // 2]
+        ux, uy = self.path.direction_at(s_hit)
+        crossing = np.abs(ux * hy[veh] - uy * hx[veh]) >= CROSS_MIN_SIN
+        if not crossing.any():
+            return {}
+        veh, t_at, s_hit = veh[crossing], t_at[crossing], s_hit[crossing]
+        # the ego's front reaches the crossing (accelerating from its speed) and its rear leaves it
+        v = max(ego.speed_mps, 0.0)
+        d = s_hit - s_front
+        t_ego = (np.sqrt(v * v + 2.0 * EGO_PULL_AWAY_MPS2 * d) - v) / EGO_PULL_AWAY_MPS2
+        through = t_ego + (self.car.params.length_m + 2.0 * half) / max(v, 1.0)
+        # the crossing vehicle is first in the ego's way at its earliest predicted time on the route
+        in_way = np.full(len(idx), np.inf)
+        np.minimum.at(in_way, veh, t_at)
+        yield_to = through + CROSS_MARGIN_S > in_way[veh]
+        if not yield_to.any():
+            return {}
+        return {"crossing_dist_m": max(0.0, float(d[yield_to].min()) - 0.5 * float(w.width_m[idx].max()))}
 
     def _yield_line(self, w: World, s_front: float, tls) -> dict:
         """The next line where the ego must yield (a stop or give-way sign, a minor road, priority to the
