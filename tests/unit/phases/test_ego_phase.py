@@ -245,3 +245,57 @@ def test_a_route_sumo_replaced_is_given_again_and_a_refusal_is_an_event():
     d.step()
     assert [e.kind for e in d.events] == ["ego_route_rejected"]
     assert not d.bridge.writes[-1]["on_route"]  # SUMO may map the pose onto any lane meanwhile
+
+
+def _crosser(d: Drive, y_m: float, x_m: float, heading_deg: float, speed_mps: float, edge: str) -> int:
+    w = d.world
+    car = w.add("x1")
+    w.x_m[car], w.y_m[car], w.heading_deg[car], w.speed_mps[car] = x_m, y_m, heading_deg, speed_mps
+    w.length_m[car], w.width_m[car], w.edge_code[car] = 4.5, 1.8, w.intern_edge(edge)
+    return car
+
+
+def test_a_car_crossing_in_the_junction_ahead_is_let_through():
+    """Westbound across the route 30 m ahead, inside the junction (SUMO let it in): the ego, pulling away,
+    would be there with it, so the driver stops short of its way; the same car still on its own road is left
+    to the junction's right of way, and one the ego is through before is no reason to stop."""
+    d = Drive()
+    d.place()
+    _crosser(d, 36.0, 12.0, 270.0, 5.0, ":J_0")  # front 12 m east of the route, 2.4 s from it
+    d.step()
+    p = d.ego.percept
+    assert p.crossing_dist_m == pytest.approx(36.0 - 6.0 - 0.9, abs=0.5)
+
+    d = Drive()
+    d.place()
+    _crosser(d, 36.0, 12.0, 270.0, 5.0, "side")  # approaching on its road, not yet committed
+    d.step()
+    assert d.ego.percept.crossing_dist_m == math.inf
+
+    d = Drive()
+    d.place()
+    d.car.v = 13.0  # at 13 m/s the ego is through in ~2.8 s ...
+    _crosser(d, 36.0, 40.0, 270.0, 5.0, ":J_0")  # ... before this one gets there (~7.6 s)
+    d.step()
+    assert d.ego.percept.crossing_dist_m == math.inf
+
+    d = Drive()
+    d.place()
+    _crosser(d, 36.0, 0.0, 0.0, 5.0, ":J_0")  # along the route: a leader, not a crossing car
+    d.step()
+    assert d.ego.percept.crossing_dist_m == math.inf and d.ego.percept.leader_id == "x1"
+
+
+def test_the_ego_stops_short_of_a_car_standing_across_its_way_and_goes_once_it_has_gone():
+    d = Drive()
+    d.place()
+    _crosser(d, 40.0, -1.0, 270.0, 0.0, ":J_0")  # stands across the route (front 1 m west of it)
+    for _ in range(200):  # 20 s
+        d.step()
+    front = 6.0 + d.car.y  # the car starts with its front at y = 6 m
+    assert d.car.v < 0.1 and 40.0 - 0.9 - 3.0 < front < 40.0 - 0.9, front
+    assert d.logs[-1]["driver_mode"] == "crossing"
+    d.world.remove("x1")
+    for _ in range(100):
+        d.step()
+    assert d.car.v > 3.0
