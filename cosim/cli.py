@@ -132,11 +132,9 @@ def _experiment(args) -> int:
         require_display(f"--participant-driver {args.participant_driver}")
     out = Path(args.out) if args.out else Path("results") / exp.name
     with RunDir(out, force=args.force):
-        summary = run_experiment(exp, base, out, jobs=args.jobs, quiet=args.quiet)
+        summary = run_experiment(exp, base, out, jobs=args.jobs, quiet=args.quiet, clip=args.clip)
     if not args.quiet:
         print((out / "summary.md").read_text())
-    if args.clip:
-        _clip(out / exp.participants[0].id)
     print(f"results in {out}/ ({summary['wall_s']:.0f} s wall for {summary['simulated_s']:.0f} simulated s)")
     from cosim.experiment.runner import degraded_phases, phases_without_timegap
 
@@ -147,18 +145,6 @@ def _experiment(args) -> int:
         print(f"cosim: error: no time-gap data in {', '.join(empty)}", file=sys.stderr)
         return 1
     return 0
-
-
-def _clip(participant_dir: Path) -> None:
-    """A short video of one participant's system-A and system-B phases (needs the `video` extra)."""
-    try:
-        from cosim.world3d.replay import RenderParams, render_phase_clip
-
-        render_phase_clip(participant_dir / "run.mcap", participant_dir / "clip.mp4",
-                          params=RenderParams(width=640, height=360))  # fmt: skip
-        print(f"clip: {participant_dir / 'clip.mp4'}")
-    except CosimError as exc:  # no ffmpeg / no EGL: the experiment's results stand without the clip
-        print(f"cosim: no clip: {exc}", file=sys.stderr)
 
 
 def _compare(args) -> int:

@@ -138,9 +138,30 @@ def _worker(args):
     return run_participant(exp, index, base, out_dir, progress)
 
 
+def render_clip(participant_dir: Path) -> None:
+    """A short video of one participant's system-A and system-B phases (needs the `video` extra)."""
+    from cosim.errors import CosimError
+
+    try:
+        from cosim.world3d.replay import RenderParams, render_phase_clip
+
+        render_phase_clip(participant_dir / "run.mcap", participant_dir / "clip.mp4",
+                          params=RenderParams(width=640, height=360))  # fmt: skip
+        print(f"clip: {participant_dir / 'clip.mp4'}", flush=True)
+    except CosimError as exc:  # no ffmpeg / no EGL: the experiment's results stand without the clip
+        print(f"cosim: no clip: {exc}", file=sys.stderr, flush=True)
+
+
 def run_experiment(
-    exp: ExperimentConfig, base: Path, out_dir: Path, jobs: int | None = None, quiet: bool = False
+    exp: ExperimentConfig,
+    base: Path,
+    out_dir: Path,
+    jobs: int | None = None,
+    quiet: bool = False,
+    clip: bool = False,
 ) -> dict:
+    """``clip``: also render the first participant's clip (``render_clip``), in a process of its own that
+    starts as soon as that participant is done, beside the others still running."""
     from cosim.scenario import build_scenario
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -152,10 +173,14 @@ def run_experiment(
     n = len(exp.participants)
     jobs = max(1, min(jobs or os.cpu_count() or 1, n))
     t0 = time.perf_counter()
+    first_dir = out_dir / exp.participants[0].id
     if first.ego.driver.kind in ("keyboard", "wheel"):  # people drive one after the other, in this process
         results = [run_participant(exp, i, base, out_dir) for i in range(n)]
+        if clip:
+            render_clip(first_dir)
         return _write_summary(exp, results, out_dir, t0, 1)
     ctx = _participant_context()
+    clipper = None
     with ctx.Manager() as manager:
         progress = manager.dict({p.id: 0.0 for p in exp.participants})
         # a fresh process per participant: libsumo runs one simulation per process lifetime
@@ -163,6 +188,9 @@ def run_experiment(
             futures = [pool.submit(_worker, (exp, i, base, out_dir, progress)) for i in range(n)]
             while not all(f.done() for f in futures):
                 time.sleep(1.0)
+                if clip and clipper is None and futures[0].done() and futures[0].exception() is None:
+                    clipper = ctx.Process(target=render_clip, args=(first_dir,))
+                    clipper.start()
                 if not quiet:
                     line = "  ".join(f"{k} {100 * v:3.0f}%" for k, v in sorted(progress.items()))
                     sys.stderr.write(f"\r{line}  [{time.perf_counter() - t0:5.0f} s]")
@@ -170,6 +198,10 @@ def run_experiment(
             results = [f.result() for f in futures]
     if not quiet:
         sys.stderr.write("\n")
+    if clip and clipper is None:  # the first participant finished within the last poll
+        render_clip(first_dir)
+    elif clipper is not None:
+        clipper.join()
     return _write_summary(exp, results, out_dir, t0, jobs)
 
 

@@ -1,0 +1,37 @@
+"""`cosim experiment --clip`: the first participant's clip is rendered beside the participants still
+running (its own process, started once that participant is done) and is there when the command ends."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from cosim.log import read
+
+
+@pytest.mark.slow  # two short participants and a clip
+def test_the_first_participants_clip_is_whole_when_the_experiment_ends(gl, small_scenario, tmp_path):
+    _, _, osm = small_scenario
+    cfg = tmp_path / "exp.yaml"
+    cfg.write_text(
+        "name: clip\nseed: 1\n"
+        "phases: [{name: baseline, system: none, duration_s: 4}, {name: system_A, system: A, duration_s: 4},"
+        " {name: system_B, system: B, duration_s: 4}]\n"
+        "participants: [{id: P1, profile: daily_commuter}, {id: P2, profile: daily_commuter},"
+        " {id: P3, profile: daily_commuter}]\n"
+        f"run: {{scenario: {{map: {osm}, demand: {{density: low}}}}, ego: {{depart_s: 0.0}}}}\n"
+    )
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "cosim.cli", "experiment", str(cfg), "--clip", "--jobs", "2",
+                           "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, env={**os.environ, "MUJOCO_GL": "egl"}, timeout=600)  # fmt: skip
+    assert proc.returncode in (0, 1), proc.stderr[-3000:]  # 1: a 4-s phase may have no time gap
+    assert f"clip: {out / 'P1' / 'clip.mp4'}" in proc.stdout, proc.stdout + proc.stderr[-3000:]
+    clip = out / "P1" / "clip.mp4"
+    assert clip.stat().st_size > 10_000 and clip.read_bytes()[4:8] == b"ftyp"
+    assert not list((out / "P1").glob(".clip-*"))  # moved into place whole
+    assert all((out / p / "run.mcap").exists() for p in ("P1", "P2", "P3"))
+    assert read(out / "P3" / "run.mcap").counts["/ego/state"] > 10  # the last participant ran to its end
