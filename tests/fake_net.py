@@ -49,6 +49,9 @@ class Lane:
     def getSpeed(self):
         return 13.89
 
+    def allows(self, vclass):
+        return True
+
     def getOutgoing(self):
         return self.conns
 
@@ -99,7 +102,7 @@ class Edge:
     def straight(cls, eid: str, x0: float, x1: float, n_lanes: int) -> Edge:
         """An eastbound edge from x0 to x1, lane 0 on y = 0 and each further lane 3.2 m to the south."""
         lanes = [Lane(i, [(x0, -3.2 * i), (x1, -3.2 * i)]) for i in range(n_lanes)]
-        return cls(eid, lanes, Node(f"n{eid}", (x1, 0.0)))
+        return cls(eid, lanes, Node(f"n{eid}", (x1, 0.0)), length_m=abs(x1 - x0))
 
     def getID(self):
         return self.eid
@@ -118,6 +121,9 @@ class Edge:
 
     def getLane(self, i):
         return self.lanes[i]
+
+    def getLanes(self):
+        return self.lanes
 
 
 class _Phase:

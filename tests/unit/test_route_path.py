@@ -55,3 +55,18 @@ def test_the_path_changes_to_the_lane_that_leads_on():
     b.out[c] = [Conn(b.lanes[0], c.lanes[0])]
     path = RoutePath.from_network(Net([a, b, c]), ["a", "b", "c"])
     assert np.isclose(path.xy[path.xy[:, 0] > 150][0, 1], 0.0)
+
+
+def test_the_path_changes_lanes_on_the_long_road_before_a_short_one_it_must_leave_by_its_first_lane():
+    """The turn after a 25-m edge leaves from its lane 0 only: the path moves over on the 200-m road before
+    it (one lane change per 100 m there), not across three lanes within the short edge (Munich 209452710#0,
+    where that crossing put the ego in front of a car at 16 m/s)."""
+    z, a = Edge.straight("z", -100, 0, 3), Edge.straight("a", 0, 200, 3)
+    b, c = Edge.straight("b", 200, 225, 4), Edge.straight("c", 225, 300, 1)
+    z.out[a] = [Conn(z.lanes[2], a.lanes[2])]
+    a.out[b] = [Conn(a.lanes[i], b.lanes[i]) for i in range(3)] + [Conn(a.lanes[2], b.lanes[3])]
+    b.out[c] = [Conn(b.lanes[0], c.lanes[0])]
+    path = RoutePath.from_network(Net([z, a, b, c]), ["z", "a", "b", "c"])
+    assert path.lanes == {"z": 2, "a": 0, "b": 0, "c": 0}
+    on_b = path.xy[(path.xy[:, 0] >= 200) & (path.xy[:, 0] <= 225)]
+    assert np.allclose(on_b[:, 1], 0.0)  # no lane change on the short edge
