@@ -110,6 +110,10 @@ def is_spawn_edge(edge) -> bool:
 # a turn sharper than this is a hairpin: a U-turn, or one through a small junction whose internal lane bends
 # tighter than the car can steer (141 deg at a Krems junction: the driver left the road with full lock)
 HAIRPIN_DEG = 130.0
+# ... also when the turns between edges add up to that within this much road: a loop through a cluster of
+# tiny edges (Monaco 25082741 -> 4.2 m -> 2.0 m -> 5.4 m -> -25082741: 226 deg in 12 m, each turn < 130 deg)
+# is a U-turn the car cannot steer either; it left the road there and stood in the junction
+HAIRPIN_WITHIN_M = 40.0
 
 
 def _heading(p, q) -> float:
@@ -138,10 +142,27 @@ class RouteChainer:
         ]
         self.dest_ids = through or sorted(ends)
 
+    def turn(self, a: str, b: str) -> float:
+        """Signed turn from edge ``a`` onto edge ``b`` [deg], left positive."""
+        return (self.head_out[b] - self.head_in[a] + 180.0) % 360.0 - 180.0
+
     def hairpin(self, a: str, b: str) -> bool:
         """Whether going from edge ``a`` onto edge ``b`` turns sharper than HAIRPIN_DEG."""
-        turn = abs((self.head_out[b] - self.head_in[a] + 180.0) % 360.0 - 180.0)
-        return turn > HAIRPIN_DEG
+        return abs(self.turn(a, b)) > HAIRPIN_DEG
+
+    def turns_back(self, leg: list[str]) -> bool:
+        """Whether ``leg`` turns sharper than HAIRPIN_DEG at one junction or, adding up its turns, within
+        HAIRPIN_WITHIN_M of road."""
+        for i in range(len(leg) - 1):
+            total, road = 0.0, 0.0
+            for a, b in itertools.pairwise(leg[i:]):
+                total += self.turn(a, b)
+                if abs(total) > HAIRPIN_DEG:
+                    return True
+                road += self.length[b]
+                if road > HAIRPIN_WITHIN_M:
+                    break
+        return False
 
     def route_length(self, route: list[str]) -> float:
         return sum(self.length.get(e, 0.0) for e in route)
@@ -154,7 +175,7 @@ class RouteChainer:
         legs = legs_for([(route[-1], d) for d in dests])
         for d in dests:
             leg = legs.get((route[-1], d))
-            if not leg or len(leg) < 3 or any(self.hairpin(a, b) for a, b in itertools.pairwise(leg)):
+            if not leg or len(leg) < 3 or self.turns_back(leg):
                 continue
             route.extend(leg[1:])
             return self.route_length(leg[1:])

@@ -1,0 +1,47 @@
+"""Which legs the ego's route refuses as turning back (cosim.scenario.demand.RouteChainer.turns_back)."""
+
+from __future__ import annotations
+
+import math
+
+from cosim.scenario.demand import RouteChainer
+
+
+class StraightEdge:
+    """A straight edge of ``length_m`` heading ``heading_deg`` (counter-clockwise from east)."""
+
+    def __init__(self, eid: str, heading_deg: float, length_m: float):
+        self.eid, self.length_m = eid, length_m
+        h = math.radians(heading_deg)
+        self.shape = [(0.0, 0.0), (length_m * math.cos(h), length_m * math.sin(h))]
+
+    def getID(self):  # noqa: N802 (sumolib's names)
+        return self.eid
+
+    def getLength(self):  # noqa: N802
+        return self.length_m
+
+    def getShape(self):  # noqa: N802
+        return self.shape
+
+    def getOutgoing(self):  # noqa: N802
+        return {}
+
+
+def chainer(*edges: tuple[str, float, float]) -> RouteChainer:
+    return RouteChainer([StraightEdge(*e) for e in edges])
+
+
+def test_a_loop_through_tiny_edges_turns_back_though_no_single_turn_is_a_hairpin():
+    """Monaco 25082741: -101 then -124 deg within 6 m of road is a U-turn the car cannot steer."""
+    c = chainer(("in", 0.0, 150.0), ("a", -101.0, 2.0), ("b", -225.0, 5.4), ("out", 180.0, 150.0))
+    assert not any(c.hairpin(x, y) for x, y in (("in", "a"), ("a", "b")))
+    assert c.turns_back(["in", "a", "b", "out"])
+
+
+def test_one_sharp_turn_is_a_hairpin_and_a_block_round_or_an_s_bend_is_not():
+    c = chainer(("in", 0.0, 100.0), ("back", 180.0, 100.0), ("left", 90.0, 100.0), ("west", 180.0, 100.0),
+                ("jog", 90.0, 5.0), ("east", 0.0, 100.0))  # fmt: skip
+    assert c.turns_back(["in", "back"])
+    assert not c.turns_back(["in", "left", "west"])  # 180 deg in all, but 100 m apart: round a block
+    assert not c.turns_back(["in", "jog", "east"])  # +90 then -90 within 5 m
