@@ -32,10 +32,11 @@ class Node:
 
 
 class Lane:
-    """Lane ``index`` of ``edge`` (set by Edge), along ``shape``, with its outgoing connections."""
+    """Lane ``index`` of ``edge`` (set by Edge), along ``shape``, with its outgoing connections; ``lid``
+    names an internal lane (a connection's via)."""
 
-    def __init__(self, index: int = 0, shape=((0.0, 0.0), (1.0, 0.0)), conns=()):
-        self.index, self.shape, self.conns, self.edge = index, list(shape), list(conns), None
+    def __init__(self, index: int = 0, shape=((0.0, 0.0), (1.0, 0.0)), conns=(), lid: str = ""):
+        self.index, self.shape, self.conns, self.edge, self.lid = index, list(shape), list(conns), None, lid
 
     def getIndex(self):
         return self.index
@@ -60,11 +61,10 @@ class Lane:
 
 
 class Conn:
-    def __init__(
-        self, from_lane=None, to_lane=None, *, direction: str = "s", link: int = -1, state: str = "M"
-    ):
-        self.from_lane, self.to_lane, self.direction, self.link, self.state = (
-            from_lane, to_lane, direction, link, state)  # fmt: skip
+    def __init__(self, from_lane=None, to_lane=None, *, direction: str = "s", link: int = -1, state: str = "M",
+                 via: Lane | None = None):  # fmt: skip
+        self.from_lane, self.to_lane, self.direction, self.link, self.state, self.via = (
+            from_lane, to_lane, direction, link, state, via)  # fmt: skip
 
     def getFromLane(self):
         return self.from_lane
@@ -82,7 +82,7 @@ class Conn:
         return self.state
 
     def getViaLaneID(self):
-        return None
+        return self.via.lid if self.via is not None else None
 
 
 class Edge:
@@ -156,9 +156,13 @@ class TrafficLight:
 
 
 class Net:
-    def __init__(self, edges=(), traffic_lights=()):
+    def __init__(self, edges=(), traffic_lights=(), internal_lanes=()):
         self.edges = {e.eid: e for e in edges}
         self.traffic_lights = list(traffic_lights)
+        self.internal = {lane.lid: lane for lane in internal_lanes}
+
+    def getLane(self, lid):
+        return self.internal[lid]
 
     def getEdge(self, eid):
         return self.edges[eid]

@@ -87,9 +87,8 @@ class RoutePath:
                 into_roundabout = nxt.getID() in roundabout_edges and eid not in roundabout_edges
                 stop_lines.append(StopLine(line.length, node.getID(), c.getState(), tuple(node.getCoord()[:2]),
                                            c.getDirection(), into_roundabout, i))  # fmt: skip
-                via = c.getViaLaneID()
-                if via:
-                    line.extend([tuple(p[:2]) for p in net.getLane(via).getShape()])
+                for via in _via_chain(net, c):
+                    line.extend([tuple(p[:2]) for p in via.getShape()])
                 entry_lane = c.getToLane()
         return cls(line.pts, stop_lines, limits, lanes)
 
@@ -213,6 +212,18 @@ class RoutePath:
 # where it would cross several lanes within a few metres, blind to the cars in them (Munich 209452710#0:
 # three lanes in 25 m in front of a car at 16 m/s)
 LANE_CHANGE_COST_M = 100.0
+
+
+def _via_chain(net, conn) -> list:
+    """The internal lanes a connection drives through: one, or several where a junction splits it at an
+    internal junction (a left turn's waiting point), each leading to the next: without the later ones the
+    path would cut the turn's curve with a straight line."""
+    lanes, via = [], conn.getViaLaneID()
+    while via and len(lanes) < 8:
+        lane = net.getLane(via)
+        lanes.append(lane)
+        via = next((o.getViaLaneID() for o in lane.getOutgoing() if o.getToLane() is conn.getToLane()), None)
+    return lanes
 
 
 def _for_cars(lane) -> bool:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from fake_net import Conn, Edge, Net
+from fake_net import Conn, Edge, Lane, Net
 
 from cosim.driver.route import RoutePath
 
@@ -70,3 +70,14 @@ def test_the_path_changes_lanes_on_the_long_road_before_a_short_one_it_must_leav
     assert path.lanes == {"z": 2, "a": 0, "b": 0, "c": 0}
     on_b = path.xy[(path.xy[:, 0] >= 200) & (path.xy[:, 0] <= 225)]
     assert np.allclose(on_b[:, 1], 0.0)  # no lane change on the short edge
+
+
+def test_a_turn_split_at_its_waiting_point_is_followed_through_both_internal_lanes():
+    """A left turn with an internal junction drives two internal lanes, the second one curved (Munich
+    :cluster_3424935801_..._15): the path takes both instead of cutting the curve straight to the next road."""
+    a, b = Edge.straight("a", 0, 100, 1), Edge.straight("b", 110, 200, 1)
+    second = Lane(0, [(105.0, 0.0), (108.0, 3.0), (110.0, 0.0)], lid=":j_1_0")
+    first = Lane(0, [(100.0, 0.0), (105.0, 0.0)], lid=":j_0_0", conns=[Conn(to_lane=b.lanes[0], via=second)])
+    a.out[b] = [Conn(a.lanes[0], b.lanes[0], via=first)]
+    path = RoutePath.from_network(Net([a, b], internal_lanes=[first, second]), ["a", "b"])
+    assert any(np.allclose(p, (108.0, 3.0)) for p in path.xy)
