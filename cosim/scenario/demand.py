@@ -182,6 +182,9 @@ class RouteChainer:
         return 0.0
 
 
+STUCK_BATCHES = 3  # the ego's route starts again elsewhere after this many batches in a row gave no leg
+
+
 def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: float, table: RouteTable,
                      net_file: Path, workdir: Path) -> list[str]:  # fmt: skip
     """The ego's predefined route: A* legs to random destinations chained from a seeded start edge."""
@@ -195,14 +198,18 @@ def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: fl
     for _ in range(6):  # a new start only when the route gets stuck (no leg without a U-turn)
         route = [starts[int(rng.integers(len(starts)))].getID()]
         total = chainer.length[route[0]]
-        stuck = False
-        for _ in range(12):  # batches of candidate legs, routed together
+        stuck, failed = False, 0
+        for _ in range(12 + STUCK_BATCHES):  # batches of candidate legs, routed together
             if total >= min_length_m:
                 return route
             added = chainer.extend(route, rng, legs_for)
-            if not added:
-                stuck = True
-                break
+            if not added:  # every destination of the batch needed a U-turn from here: another batch
+                failed += 1
+                if failed >= STUCK_BATCHES:
+                    stuck = True
+                    break
+                continue
+            failed = 0
             total += added
         best = max(best, route, key=chainer.route_length)
         if not stuck:  # as long as the batches allow on this map
