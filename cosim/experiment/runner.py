@@ -10,6 +10,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from cosim.errors import CosimError
 from cosim.experiment.analysis import (
     assumptions_markdown,
     mark_assumed,
@@ -140,8 +141,6 @@ def _worker(args):
 
 def render_clip(participant_dir: Path) -> None:
     """A short video of one participant's system-A and system-B phases (needs the `video` extra)."""
-    from cosim.errors import CosimError
-
     try:
         from cosim.world3d.replay import RenderParams, render_phase_clip
 

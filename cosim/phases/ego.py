@@ -264,7 +264,7 @@ class EgoController:
         rows, s_rear = self.path.vehicles_on_path(
             rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half
         )
-        kw = self._crossing(w, idx, heading, s_front, half)
+        kw = self._crossing(w, idx, heading, cx, cy, s_front, half)
         if rows.size == 0:
             return kw
         k = int(np.argmin(s_rear))
@@ -272,13 +272,12 @@ class EgoController:
         return {**kw, "leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
                 "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
-    def _crossing(self, w, idx: np.ndarray, heading: np.ndarray, s_front: float, half: float) -> dict:
+    def _crossing(self, w, idx: np.ndarray, heading: np.ndarray, cx: float, cy: float, s_front: float,
+                  half: float) -> dict:  # fmt: skip
         """Where the nearest vehicle crossing the route ahead will be in the ego's way (``crossing_dist_m``;
         see CROSS_LOOK_M). Vehicles approaching a junction are left to its right of way: only those inside
         one (or standing across the route) are committed to their way."""
-        ego = self.car.state()
-        near = np.hypot(w.x_m[idx] - ego.x_m - self.origin[0], w.y_m[idx] - ego.y_m - self.origin[1])
-        keep = near < CROSS_LOOK_M + 30.0
+        keep = np.hypot(w.x_m[idx] - cx, w.y_m[idx] - cy) < CROSS_LOOK_M + 30.0
         if not keep.any():
             return {}
         idx, heading = idx[keep], heading[keep]
@@ -304,7 +303,7 @@ class EgoController:
             return {}
         veh, t_at, s_hit = veh[crossing], t_at[crossing], s_hit[crossing]
         # the ego's front reaches the crossing (accelerating from its speed) and its rear leaves it
-        v = max(ego.speed_mps, 0.0)
+        v = max(self.car.state().speed_mps, 0.0)
         d = s_hit - s_front
         t_ego = (np.sqrt(v * v + 2.0 * EGO_PULL_AWAY_MPS2 * d) - v) / EGO_PULL_AWAY_MPS2
         through = t_ego + (self.car.params.length_m + 2.0 * half) / max(v, 1.0)
