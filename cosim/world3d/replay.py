@@ -324,6 +324,10 @@ class _Mp4Writer:
 
     def finish(self) -> None:
         self.gen.close()
+        # mkstemp makes the file private (0600); the video gets the mode any new file of the user's gets
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(self.tmp, 0o666 & ~umask)
         os.replace(self.tmp, self.path)
 
     def abort(self) -> None:

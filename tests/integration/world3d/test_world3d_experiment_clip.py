@@ -33,5 +33,8 @@ def test_the_first_participants_clip_is_whole_when_the_experiment_ends(gl, small
     clip = out / "P1" / "clip.mp4"
     assert clip.stat().st_size > 10_000 and clip.read_bytes()[4:8] == b"ftyp"
     assert not list((out / "P1").glob(".clip-*"))  # moved into place whole
+    umask = os.umask(0)
+    os.umask(umask)
+    assert clip.stat().st_mode & 0o777 == 0o666 & ~umask  # the mode of any new file (not mkstemp's 0600)
     assert all((out / p / "run.mcap").exists() for p in ("P1", "P2", "P3"))
     assert read(out / "P3" / "run.mcap").counts["/ego/state"] > 10  # the last participant ran to its end
