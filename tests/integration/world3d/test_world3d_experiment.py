@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 import pytest
+from short_experiment import short_experiment_config
 from test_world3d_drive import XKeys, XServer
 
 from cosim.log import read
@@ -40,14 +41,7 @@ def _windows(keys: XKeys) -> int:
 def test_experiment_with_a_person_at_the_keyboard(gl, small_scenario, tmp_path):
     _, _, osm = small_scenario
     cfg = tmp_path / "exp.yaml"
-    cfg.write_text(
-        "name: person\nseed: 1\n"
-        "phases: [{name: baseline, system: none, duration_s: 3}, {name: system_A, system: A, duration_s: 3},"
-        " {name: system_B, system: B, duration_s: 3}]\n"
-        "participants: [{id: P1, profile: daily_commuter}]\n"
-        f"run: {{scenario: {{map: {osm}, demand: {{density: low}}}}, ego: {{depart_s: 0.0}},"
-        " log: {scene_every_steps: 0}}\n"
-    )
+    short_experiment_config(cfg, "person", osm, 3, 1, log="scene_every_steps: 0")
     xs = XServer()
     keys = None
     try:

@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import pytest
+from short_experiment import short_experiment_config
 
 from cosim.log import read
 
@@ -16,14 +17,7 @@ from cosim.log import read
 def test_the_first_participants_clip_is_whole_when_the_experiment_ends(gl, small_scenario, tmp_path):
     _, _, osm = small_scenario
     cfg = tmp_path / "exp.yaml"
-    cfg.write_text(
-        "name: clip\nseed: 1\n"
-        "phases: [{name: baseline, system: none, duration_s: 4}, {name: system_A, system: A, duration_s: 4},"
-        " {name: system_B, system: B, duration_s: 4}]\n"
-        "participants: [{id: P1, profile: daily_commuter}, {id: P2, profile: daily_commuter},"
-        " {id: P3, profile: daily_commuter}]\n"
-        f"run: {{scenario: {{map: {osm}, demand: {{density: low}}}}, ego: {{depart_s: 0.0}}}}\n"
-    )
+    short_experiment_config(cfg, "clip", osm, 4, 3)
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-m", "cosim.cli", "experiment", str(cfg), "--clip", "--jobs", "2",
                            "--out", str(out), "--quiet"],
