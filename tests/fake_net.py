@@ -41,6 +41,9 @@ class Lane:
     def getIndex(self):
         return self.index
 
+    def getID(self):
+        return self.lid or f"{self.edge.eid}_{self.index}"
+
     def getShape(self):
         return self.shape
 

@@ -149,6 +149,9 @@ class Percept:
     # [m] to where a vehicle crossing the route (in the junction ahead, or standing across it) will be in the
     # ego's way when the ego gets there: the driver stops short of it
     crossing_dist_m: float = math.inf
+    # [m] to where the route's next lane change would begin to enter a lane with no gap in its traffic for the
+    # ego: the driver waits short of it
+    merge_dist_m: float = math.inf
     sys_a_lit: bool = False  # system A: the leader's rear "keep distance" display is lit AND legible
     sys_b_gap_s: float | None = None  # system B: time gap shown in the car [s]; None = "no data" / off
     sys_b_level: WarningLevel = "none"  # system B: 'none' | 'advisory' | 'warning'
@@ -176,6 +179,7 @@ class Percept:
             "sign_dist_m",
             "route_end_dist_m",
             "crossing_dist_m",
+            "merge_dist_m",
             "junction_gap_s",
         ):
             if math.isnan(getattr(self, name)):

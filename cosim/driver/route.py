@@ -31,6 +31,31 @@ class StopLine:
     edge_index: int = -1  # index in the route of the edge that ends at this line
 
 
+@dataclass(frozen=True, eq=False)
+class LaneChange:
+    """Where the path moves over to another lane of an edge, and the lanes whose traffic it moves in front
+    of: the edge's lanes it enters (their centre lines) and the lanes leading into those (where they join)."""
+
+    s_start: float  # the path leaves the lane it entered the edge on here: the edge's start [m]
+    s_end: float  # ... and is on the new lane's centre line here [m]
+    lanes_crossed: int
+    enters: dict[str, np.ndarray]  # SUMO lane id -> centre line (N, 2) of a lane of the edge it moves into
+    feeders: dict[str, tuple[float, float]]  # SUMO lane id leading into one of those -> where that one starts
+
+    def position(self, lane_id: str, x: float, y: float) -> float:
+        """A vehicle's front (x, y) on a watched lane, as metres from the edge's start along its lanes:
+        negative on a lane leading into them (the straight distance to the edge: never more than the way)."""
+        start = self.feeders.get(lane_id)
+        if start is not None:
+            return -math.dist(start, (x, y))
+        shape = self.enters[lane_id]
+        a, d = shape[:-1], np.diff(shape, axis=0)
+        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+        t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
+        k = int((((a + t[:, None] * d) - (x, y)) ** 2).sum(axis=1).argmin())
+        return float(np.sqrt(seg2[:k]).sum() + t[k] * math.sqrt(seg2[k]))
+
+
 class RoutePath:
     """The route as one lane centre-line polyline with arc lengths, its stop lines and speed limits."""
 
@@ -40,10 +65,14 @@ class RoutePath:
         stop_lines: list[StopLine] = (),
         limits: list[tuple[float, float]] = ((0.0, 13.89),),
         lanes: dict[str, int] | None = None,
+        lane_changes: list[LaneChange] = (),
     ):
         """``xy``: (N, 2) centre-line points; ``limits``: (arc position where it starts, speed [m/s]);
-        ``lanes``: edge id -> index of the lane the path takes on it (where it leaves the edge)."""
+        ``lanes``: edge id -> index of the lane the path takes on it (where it leaves the edge);
+        ``lane_changes``: where it moves to another lane, by arc position."""
         self.lanes = dict(lanes or {})
+        self.lane_changes = list(lane_changes)
+        self.lane_change_s = [c.s_start for c in self.lane_changes]
         xy = np.asarray(xy, dtype=np.float64)
         keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-3])
         self.xy = xy[keep]
@@ -64,7 +93,9 @@ class RoutePath:
         limits: list[tuple[float, float]] = []  # (s where it starts, speed)
         roundabout_edges = {e for r in net.getRoundabouts() for e in r.getEdges()}
         entry_lane = None
+        came_by: set[str] = set()  # the path's lanes into the edge it is on (its own, never a foe's)
         lanes: dict[str, int] = {}
+        lane_changes: list[LaneChange] = []
         plan = _LanePlan(net, route)
         for i, eid in enumerate(route):
             edge = net.getEdge(eid)
@@ -75,11 +106,15 @@ class RoutePath:
             conns = [conn] if conn is not None else []
             lanes.setdefault(eid, lane.getIndex())
             shape = [tuple(p[:2]) for p in lane.getShape()]
-            if (
-                entry_lane is not None and entry_lane is not lane and line.pts
-            ):  # change lanes early on the edge
+            changes = entry_lane is not None and entry_lane is not lane and bool(line.pts)
+            if changes:  # change lanes early on the edge
                 shape = _trim_start(shape, min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength()))
+                diagonal = math.dist(line.pts[-1], shape[0])
             s0 = line.extend(shape)
+            if changes:
+                lane_changes.append(
+                    _lane_change(net, edge, entry_lane.getIndex(), lane.getIndex(), s0, diagonal, came_by)
+                )
             limits.append((s0, lane.getSpeed()))
             if conns:
                 c = conns[0]
@@ -87,10 +122,12 @@ class RoutePath:
                 into_roundabout = nxt.getID() in roundabout_edges and eid not in roundabout_edges
                 stop_lines.append(StopLine(line.length, node.getID(), c.getState(), tuple(node.getCoord()[:2]),
                                            c.getDirection(), into_roundabout, i))  # fmt: skip
+                came_by = {lane.getID()}
                 for via in _via_chain(net, c):
                     line.extend([tuple(p[:2]) for p in via.getShape()])
+                    came_by.add(via.getID())
                 entry_lane = c.getToLane()
-        return cls(line.pts, stop_lines, limits, lanes)
+        return cls(line.pts, stop_lines, limits, lanes, lane_changes)
 
     def project(self, x: float, y: float, near_s: float | None = None) -> tuple[float, float]:
         """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit
@@ -224,6 +261,27 @@ def _via_chain(net, conn) -> list:
         lanes.append(lane)
         via = next((o.getViaLaneID() for o in lane.getOutgoing() if o.getToLane() is conn.getToLane()), None)
     return lanes
+
+
+def _lane_change(net, edge, arriving: int, leaving: int, s_start: float, diagonal_m: float,
+                 came_by: set[str]) -> LaneChange:  # fmt: skip
+    """The lane change on ``edge`` from lane index ``arriving`` to ``leaving``, starting at arc position
+    ``s_start`` along a diagonal of ``diagonal_m``: the lanes it moves into and those leading into them (from
+    the edges entering the junction before it, through the junction's internal lanes), except the lanes
+    ``came_by`` the path itself."""
+    step = 1 if leaving > arriving else -1
+    entered = [edge.getLane(i) for i in range(arriving + step, leaving + step, step)]
+    enters = {lane.getID(): np.asarray(lane.getShape(), dtype=np.float64)[:, :2] for lane in entered}
+    feeders: dict[str, tuple[float, float]] = {}
+    for incoming in edge.getFromNode().getIncoming():
+        for c in incoming.getOutgoing().get(edge, []):
+            to = c.getToLane()
+            if to.getID() in enters:
+                start = tuple(to.getShape()[0][:2])
+                for lane in (c.getFromLane(), *_via_chain(net, c)):
+                    if lane.getID() not in came_by:
+                        feeders.setdefault(lane.getID(), start)
+    return LaneChange(s_start, s_start + diagonal_m, abs(leaving - arriving), enters, feeders)
 
 
 def _for_cars(lane) -> bool:

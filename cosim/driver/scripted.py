@@ -159,7 +159,7 @@ class _Seen:
 
     __slots__ = (
         "t", "odo", "leader", "leader_id", "gap", "vl", "al", "limit", "next_limit", "next_limit_d", "tls", "tls_d", "tls_id",
-        "sign", "sign_d", "sign_id", "conflict", "jgap", "movement", "route_end_d", "cross_d", "a_lit", "b_gap",
+        "sign", "sign_d", "sign_id", "conflict", "jgap", "movement", "route_end_d", "cross_d", "merge_d", "a_lit", "b_gap",
         "b_level",
     )  # fmt: skip
 
@@ -349,6 +349,7 @@ class ScriptedDriver(Driver):
         s.tls, s.tls_d, s.tls_id = p.tls_state, p.tls_dist_m, p.tls_id
         s.sign, s.sign_d, s.sign_id = p.sign_kind, p.sign_dist_m, p.sign_id
         s.conflict, s.route_end_d, s.cross_d = p.junction_conflict, p.route_end_dist_m, p.crossing_dist_m
+        s.merge_d = p.merge_dist_m
         s.jgap, s.movement = p.junction_gap_s, p.junction_movement
         s.a_lit, s.b_gap, s.b_level = p.sys_a_lit, p.sys_b_gap_s, p.sys_b_level
         return s
@@ -438,6 +439,8 @@ class ScriptedDriver(Driver):
             consider(_stop_accel(v, d.route_end_d - travelled - margin, b), "route_end")
         if math.isfinite(d.cross_d):  # a car crossing ahead: let it through, stopping short of its way
             consider(_stop_accel(v, d.cross_d - travelled - _CROSSING_MARGIN_M, b), "crossing")
+        if math.isfinite(d.merge_d):  # no gap in the lane the route moves into: wait short of it
+            consider(_stop_accel(v, d.merge_d - travelled - _CROSSING_MARGIN_M, b), "merge")
         tls_d = d.tls_d - travelled
         if self._traffic_light(d, v, tls_d) == "stop":
             consider(_stop_accel(v, tls_d - margin, b), "tls")

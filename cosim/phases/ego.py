@@ -19,7 +19,7 @@ import numpy as np
 from cosim import frames
 from cosim.driver import Controls, Percept, make_driver
 from cosim.driver.gap_acceptance import arrival_time_s, movement_of
-from cosim.driver.route import RoutePath
+from cosim.driver.route import LANE_CHANGE_LENGTH_M, RoutePath
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
 from cosim.runconfig import EgoConfig
@@ -52,6 +52,21 @@ CROSS_TIMES_S = np.arange(0.0, 3.01, 0.5)
 CROSS_MIN_SIN = math.sin(math.radians(30.0))  # nearer the route's direction: a leader or a merging car
 EGO_PULL_AWAY_MPS2 = 1.5  # the ego's arrival at the crossing is estimated accelerating at this
 CROSS_MARGIN_S = 1.0  # the ego goes first only if its rear is past the crossing this long before the car
+# Lane changes on the path (RoutePath.lane_changes): the driver moves over only into a gap in the lanes it
+# enters. The gap is judged for when the front bumper reaches the point where the car begins to enter the
+# next lane, MERGE_ENTER_FRACTION of the way across per lane crossed ((3.2 m lane - 1.8 m car) / 2 / 3.2 m
+# = 0.22), predicted at constant speeds from MERGE_LOOK_M before it; the ego accelerating at EGO_PULL_AWAY_MPS2.
+MERGE_LOOK_M = 60.0
+MERGE_ENTER_FRACTION = 0.2
+# The car it moves in front of must be left SUMO's secure gap (MSCFModel::getSecureGap, Krauss: its speed
+# times its reaction time tau plus the difference of the two braking distances at its deceleration) and its
+# minGap; a car ahead must be MERGE_FRONT_GAP_M clear of the ego's front. A driver held MERGE_PATIENCE_S
+# accepts what SUMO's cars can still absorb (tau of half a second, braking at their emergency deceleration),
+# as SUMO's lane-change impatience does, instead of waiting for ever beside a dense stream.
+MERGE_MIN_GAP_M, MERGE_FRONT_GAP_M = 2.5, 2.0
+MERGE_TAU_S, MERGE_DECEL_MPS2 = 1.0, 4.5  # SUMO's defaults for passenger cars (vType tau, decel)
+MERGE_PATIENCE_S, MERGE_IMPATIENT_TAU_S, MERGE_IMPATIENT_DECEL_MPS2 = 10.0, 0.5, 9.0  # emergencyDecel 9
+MERGE_LATE_DECEL_MPS2 = 4.5  # stopping short would need harder braking than this: the change goes on
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -145,6 +160,7 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
+        self._merge_held: tuple[float, float] | None = None  # (lane change's arc position, held since [s])
 
     def _start(self, w, slot: int) -> None:
         cx, cy, yaw = frames.sumo_to_mujoco(
@@ -181,6 +197,7 @@ class EgoController:
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
+        kw.update(self._merge(w, slot, cx, cy, s_front))
         tls = self._next_tls(w, s_front)
         self._check_red_light(tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
@@ -314,6 +331,51 @@ class EgoController:
         if not yield_to.any():
             return {}
         return {"crossing_dist_m": max(0.0, float(d[yield_to].min()) - 0.5 * float(w.width_m[idx].max()))}
+
+    def _merge(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
+        """Where the ego must wait (``merge_dist_m``: its front at the point where it would begin to enter
+        the next lane) because the next lane change on its path has no gap (see MERGE_LOOK_M)."""
+        path = self.path
+        change = enter_s = None
+        first = bisect.bisect_left(path.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)  # may be on it
+        for c in path.lane_changes[first:]:
+            s = c.s_start + MERGE_ENTER_FRACTION / c.lanes_crossed * (c.s_end - c.s_start)
+            if s > s_front:
+                change, enter_s = c, s
+                break
+        if change is None or enter_s - s_front > MERGE_LOOK_M:
+            return {}
+        v = max(self.car.state().speed_mps, 0.0)
+        d = enter_s - s_front
+        if v * v > 2.0 * MERGE_LATE_DECEL_MPS2 * max(d - 1.0, 0.1):
+            return {}  # too late to stop short: committed
+        held = self._merge_held
+        impatient = held is not None and held[0] == change.s_start and w.t_s - held[1] >= MERGE_PATIENCE_S
+        tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
+        decel = MERGE_IMPATIENT_DECEL_MPS2 if impatient else MERGE_DECEL_MPS2
+        t_e = (math.sqrt(v * v + 2.0 * EGO_PULL_AWAY_MPS2 * d) - v) / EGO_PULL_AWAY_MPS2
+        front = enter_s - change.s_start  # the ego's front then, from the edge's start
+        rear = front - self.car.params.length_m
+        live, _ = w.live()
+        near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < MERGE_LOOK_M + 60.0]
+        for slot in near.tolist():
+            code = int(w.edge_code[slot])
+            if slot == ego_slot or code < 0:
+                continue
+            lane = f"{w.edge_names[code]}_{w.lane_index[slot]}"
+            if lane not in change.enters and lane not in change.feeders:
+                continue
+            vf = float(w.speed_mps[slot])
+            q = change.position(lane, float(w.x_m[slot]), float(w.y_m[slot])) + vf * t_e
+            if q - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:
+                continue  # clear ahead
+            secure = MERGE_MIN_GAP_M + vf * tau + max(0.0, vf * vf - v * v) / (2.0 * decel)
+            if q <= rear - secure:
+                continue  # far enough behind
+            if held is None or held[0] != change.s_start:
+                self._merge_held = (change.s_start, w.t_s)
+            return {"merge_dist_m": d}
+        return {}
 
     def _yield_line(self, w: World, s_front: float, tls) -> dict:
         """The next line where the ego must yield (a stop or give-way sign, a minor road, priority to the

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from fake_net import Conn, Edge, Lane, Net
+import pytest
+from fake_net import Conn, Edge, Lane, Net, Node
 
 from cosim.driver.route import RoutePath
 
@@ -81,3 +84,29 @@ def test_a_turn_split_at_its_waiting_point_is_followed_through_both_internal_lan
     a.out[b] = [Conn(a.lanes[0], b.lanes[0], via=first)]
     path = RoutePath.from_network(Net([a, b], internal_lanes=[first, second]), ["a", "b"])
     assert any(np.allclose(p, (108.0, 3.0)) for p in path.xy)
+
+
+def test_a_lane_change_knows_the_lanes_it_moves_into_and_those_leading_into_them():
+    """Arriving on lane 2 of b, which it must leave by lane 0: the path crosses lanes 1 and 0 early on b. It
+    watches those two lanes and every lane entering them at the junction before (through its internal lanes)
+    but not its own way in; positions are metres from b's start, negative before it."""
+    node = Node("n", (100.0, 0.0), type="priority")
+    a = Edge("a", [Lane(0, [(0.0, -6.4), (100.0, -6.4)])], node)
+    side_lanes = [Lane(i, [(103.0 + 3.2 * i, -60.0), (103.0 + 3.2 * i, -12.0)]) for i in range(2)]
+    side = Edge("side", side_lanes, node)
+    b = Edge("b", [Lane(i, [(110.0, -3.2 * i), (210.0, -3.2 * i)]) for i in range(3)], Node("m", (210.0, 0.0)),
+             from_node=node)  # fmt: skip
+    c = Edge.straight("c", 210, 300, 1)
+    own = Lane(0, [(100.0, -6.4), (110.0, -6.4)], lid=":n_0_0")
+    turn = Lane(0, [(100.0, -3.2), (110.0, -3.2)], lid=":n_1_0")
+    a.out[b] = [Conn(a.lanes[0], b.lanes[2], via=own)]
+    side.out[b] = [Conn(side.lanes[0], b.lanes[0]), Conn(side.lanes[1], b.lanes[1], via=turn)]
+    b.out[c] = [Conn(b.lanes[0], c.lanes[0])]
+    path = RoutePath.from_network(Net([a, side, b, c], internal_lanes=[own, turn]), ["a", "b", "c"])
+    (change,) = path.lane_changes
+    assert change.lanes_crossed == 2 and set(change.enters) == {"b_1", "b_0"}
+    assert set(change.feeders) == {"side_0", "side_1", ":n_1_0"}  # not a_0 or :n_0_0, the path's own way
+    assert change.s_start == pytest.approx(110.0, abs=0.5) and change.s_end - change.s_start == pytest.approx(
+        math.hypot(30.0, 6.4), abs=0.1)  # fmt: skip
+    assert change.position("b_0", 150.0, 0.3) == pytest.approx(40.0)
+    assert change.position("side_0", 103.0, -20.0) == pytest.approx(-math.hypot(7.0, 20.0))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from cosim.driver.gap_acceptance import arrival_time_s
-from cosim.driver.route import RoutePath, StopLine
+from cosim.driver.route import LaneChange, RoutePath, StopLine
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
 from cosim.phases.ego import EgoController
@@ -299,3 +299,75 @@ def test_the_ego_stops_short_of_a_car_standing_across_its_way_and_goes_once_it_h
     for _ in range(100):
         d.step()
     assert d.car.v > 3.0
+
+
+# the route's lane change for the merge tests: on edge b (from y = 200 m) the path moves 3.2 m west into
+# lane b_1 over 30 m; a_1 and the junction's :J_1_0 lead into that lane
+_CHANGE = LaneChange(200.0, 230.0, 1, {"b_1": np.array([(-3.2, 200.0), (-3.2, 400.0)])},
+                     {"a_1": (-3.2, 200.0), ":J_1_0": (-3.2, 200.0)})  # fmt: skip
+
+
+def _merging(d: Drive, front_m: float, speed_mps: float) -> None:
+    slot = d.place(front_m)
+    d.world.speed_mps[slot] = speed_mps
+    d.ego.path = RoutePath([(0.0, 0.0), (0.0, 3 * EDGE_M)], (), [(k * EDGE_M, 13.89) for k in range(3)],
+                           lane_changes=[_CHANGE])  # fmt: skip
+
+
+def _in_target_lane(d: Drive, vid: str, front_m: float, speed_mps: float) -> int:
+    w = d.world
+    slot = w.slot_of.get(vid)
+    if slot is None:
+        slot = w.add(vid)
+        w.length_m[slot], w.width_m[slot], w.heading_deg[slot] = 4.5, 1.8, 0.0
+    edge = "a" if front_m < 190.0 else ":J_1" if front_m < 200.0 else "b"
+    w.x_m[slot], w.y_m[slot], w.speed_mps[slot] = -3.2, front_m, speed_mps
+    w.edge_code[slot], w.lane_index[slot] = w.intern_edge(edge), 0 if edge == ":J_1" else 1
+    return slot
+
+
+def test_the_ego_lets_a_car_beside_it_in_the_lane_it_moves_into_go_first():
+    """Side by side at 10 m/s, both 50 m before the lane change: driving on blind, the ego would move over
+    onto the car (Monaco, Helsinki: SUMO saw a collision). The driver waits short of the change, lets the car
+    pass and then moves in behind it with room to spare."""
+    d = Drive()
+    _merging(d, 150.0, 10.0)
+    other = 148.0
+    rear_gaps = []
+    for _ in range(200):  # 20 s
+        _in_target_lane(d, "x1", other, 10.0)
+        d.step()
+        other += 10.0 * STEP_S
+        front = 150.0 + d.car.y
+        if 206.0 <= front <= 230.0:  # the ego enters lane b_1 from 206 m on (a fifth of the diagonal)
+            rear_gaps.append(other - 4.5 - front)
+    assert "merge" in {log["driver_mode"] for log in d.logs}
+    assert rear_gaps and min(rear_gaps) > 2.0, min(rear_gaps, default=None)
+    assert d.car.v > 5.0  # on its way again
+
+
+def test_gaps_that_are_enough_are_taken_without_waiting():
+    """A car far behind in the lane the ego moves into, or one well ahead of it: no reason to wait."""
+    for front_m, speed_mps in ((60.0, 10.0), (300.0, 0.0)):
+        d = Drive()
+        _merging(d, 150.0, 10.0)
+        _in_target_lane(d, "x1", front_m, speed_mps)
+        for _ in range(80):
+            d.step()
+        assert "merge" not in {log["driver_mode"] for log in d.logs}
+        assert 150.0 + d.car.y > 230.0
+
+
+def test_a_car_standing_beside_the_lane_change_holds_the_ego_until_it_moves_off():
+    d = Drive()
+    _merging(d, 150.0, 10.0)
+    _in_target_lane(d, "x1", 209.0, 0.0)  # stands where the ego would move over
+    for _ in range(300):  # 30 s: past the driver's patience, still no room
+        d.step()
+    front = 150.0 + d.car.y
+    assert d.car.v < 0.1 and 200.0 < front < 206.0, front
+    assert d.logs[-1]["driver_mode"] == "merge"
+    d.world.remove("x1")
+    for _ in range(100):
+        d.step()
+    assert 150.0 + d.car.y > 230.0
