@@ -213,7 +213,7 @@ class Simulation:
         ego = self.config.ego
         return EgoController(ego, car=EgoCar(ego.car, timestep_s=self.config.timing.physics_timestep_s),
                              rng=stream(self.config.seed, "driver", ego.driver_seed), route=self.ego_route,
-                             path_of=lambda edges: RoutePath.from_network(self.net, edges), extension=self.route,
+                             path_of=lambda edges, delays=None: RoutePath.from_network(self.net, edges, delays), extension=self.route,
                              bridge=self.bridge, step_s=self.step_s, emit=self._emit)  # fmt: skip
 
     def _place_ego(self) -> None:

@@ -8,6 +8,7 @@ hand-made centre line).
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -16,6 +17,9 @@ from functools import cached_property
 import numpy as np
 
 LANE_CHANGE_LENGTH_M = 30.0  # the path changes to the lane of the next connection over this length [m]
+LANE_CHANGE_END_MARGIN_M = (
+    5.0  # a lane change put off (``change_delays``) still ends this far before the edge's end
+)
 BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
 PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
 
@@ -36,9 +40,12 @@ class LaneChange:
     """Where the path moves over to another lane of an edge, and the lanes whose traffic it moves in front
     of: the edge's lanes it enters (their centre lines) and the lanes leading into those (where they join)."""
 
-    s_start: float  # the path leaves the lane it entered the edge on here: the edge's start [m]
+    s_start: float  # the path leaves the lane it entered the edge on here [m]
     s_end: float  # ... and is on the new lane's centre line here [m]
     lanes_crossed: int
+    edge_index: int  # the edge's index in the route
+    delay_m: float  # how far along the edge the change starts (0: at its start; see change_delays)
+    max_delay_m: float  # how far it could start at the latest
     enters: dict[str, np.ndarray]  # SUMO lane id -> centre line (N, 2) of a lane of the edge it moves into
     feeders: dict[str, tuple[float, float]]  # SUMO lane id leading into one of those -> where that one starts
 
@@ -85,9 +92,14 @@ class RoutePath:
         self._last_s = 0.0  # arc position of the last projection
 
     @classmethod
-    def from_network(cls, net, route: list[str]) -> RoutePath:
+    def from_network(cls, net, route: list[str], change_delays: dict[int, float] | None = None) -> RoutePath:
         """The path along ``route`` (edge ids) in ``net`` (a sumolib network read with internal lanes): on
-        each edge the lane that has the connection to the next edge, through the junction's internal lane."""
+        each edge the lane that has the connection to the next edge, through the junction's internal lane.
+
+        A lane change starts at the start of its edge, or ``change_delays[route index]`` metres further on
+        the lane the path arrived by (the driver found no gap earlier), at the latest so that it ends
+        LANE_CHANGE_END_MARGIN_M before the edge's end."""
+        change_delays = change_delays or {}
         line = _Polyline()
         stop_lines: list[StopLine] = []
         limits: list[tuple[float, float]] = []  # (s where it starts, speed)
@@ -106,16 +118,23 @@ class RoutePath:
             conns = [conn] if conn is not None else []
             lanes.setdefault(eid, lane.getIndex())
             shape = [tuple(p[:2]) for p in lane.getShape()]
+            edge_start = line.length
             changes = entry_lane is not None and entry_lane is not lane and bool(line.pts)
-            if changes:  # change lanes early on the edge
-                shape = _trim_start(shape, min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength()))
+            if changes:  # change lanes early on the edge, or as far on as the driver had to put it off
+                length = min(LANE_CHANGE_LENGTH_M, 0.5 * lane.getLength())
+                latest = max(
+                    0.0, min(lane.getLength(), entry_lane.getLength()) - length - LANE_CHANGE_END_MARGIN_M
+                )
+                delay = min(change_delays.get(i, 0.0), latest)
+                if delay > 0.0:
+                    line.extend(_head([tuple(p[:2]) for p in entry_lane.getShape()], delay))
+                shape = _trim_start(shape, delay + length)
                 diagonal = math.dist(line.pts[-1], shape[0])
             s0 = line.extend(shape)
             if changes:
-                lane_changes.append(
-                    _lane_change(net, edge, entry_lane.getIndex(), lane.getIndex(), s0, diagonal, came_by)
-                )
-            limits.append((s0, lane.getSpeed()))
+                lane_changes.append(_lane_change(net, edge, entry_lane.getIndex(), lane.getIndex(), came_by,
+                                                 LaneChange(s0, s0 + diagonal, 0, i, delay, latest, {}, {})))  # fmt: skip
+            limits.append((edge_start, lane.getSpeed()))
             if conns:
                 c = conns[0]
                 node = edge.getToNode()
@@ -263,12 +282,10 @@ def _via_chain(net, conn) -> list:
     return lanes
 
 
-def _lane_change(net, edge, arriving: int, leaving: int, s_start: float, diagonal_m: float,
-                 came_by: set[str]) -> LaneChange:  # fmt: skip
-    """The lane change on ``edge`` from lane index ``arriving`` to ``leaving``, starting at arc position
-    ``s_start`` along a diagonal of ``diagonal_m``: the lanes it moves into and those leading into them (from
-    the edges entering the junction before it, through the junction's internal lanes), except the lanes
-    ``came_by`` the path itself."""
+def _lane_change(net, edge, arriving: int, leaving: int, came_by: set[str], where: LaneChange) -> LaneChange:
+    """The lane change on ``edge`` from lane index ``arriving`` to ``leaving`` (``where``: its arc positions
+    and delay): the lanes it moves into and those leading into them (from the edges entering the junction
+    before it, through the junction's internal lanes), except the lanes ``came_by`` the path itself."""
     step = 1 if leaving > arriving else -1
     entered = [edge.getLane(i) for i in range(arriving + step, leaving + step, step)]
     enters = {lane.getID(): np.asarray(lane.getShape(), dtype=np.float64)[:, :2] for lane in entered}
@@ -281,7 +298,7 @@ def _lane_change(net, edge, arriving: int, leaving: int, s_start: float, diagona
                 for lane in (c.getFromLane(), *_via_chain(net, c)):
                     if lane.getID() not in came_by:
                         feeders.setdefault(lane.getID(), start)
-    return LaneChange(s_start, s_start + diagonal_m, abs(leaving - arriving), enters, feeders)
+    return dataclasses.replace(where, lanes_crossed=abs(leaving - arriving), enters=enters, feeders=feeders)
 
 
 def _for_cars(lane) -> bool:
@@ -356,6 +373,20 @@ class _Polyline:
         self.pts.extend(shape)
         self.length = s0 + gap + _length(shape)
         return s0
+
+
+def _head(shape: list, dist: float) -> list:
+    """The first ``dist`` metres of a polyline."""
+    acc = 0.0
+    for i in range(1, len(shape)):
+        seg = math.dist(shape[i - 1], shape[i])
+        if acc + seg >= dist:
+            f = (dist - acc) / seg if seg else 0.0
+            p = (shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]),
+                 shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]))  # fmt: skip
+            return [*shape[:i], p]
+        acc += seg
+    return list(shape)
 
 
 def _trim_start(shape: list, dist: float) -> list:

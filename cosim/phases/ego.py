@@ -19,7 +19,7 @@ import numpy as np
 from cosim import frames
 from cosim.driver import Controls, Percept, make_driver
 from cosim.driver.gap_acceptance import arrival_time_s, movement_of
-from cosim.driver.route import LANE_CHANGE_LENGTH_M, RoutePath
+from cosim.driver.route import LANE_CHANGE_LENGTH_M, LaneChange, RoutePath
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
 from cosim.runconfig import EgoConfig
@@ -67,6 +67,9 @@ MERGE_MIN_GAP_M, MERGE_FRONT_GAP_M = 2.5, 2.0
 MERGE_TAU_S, MERGE_DECEL_MPS2 = 1.0, 4.5  # SUMO's defaults for passenger cars (vType tau, decel)
 MERGE_PATIENCE_S, MERGE_IMPATIENT_TAU_S, MERGE_IMPATIENT_DECEL_MPS2 = 10.0, 0.5, 9.0  # emergencyDecel 9
 MERGE_LATE_DECEL_MPS2 = 4.5  # stopping short would need harder braking than this: the change goes on
+# No gap, the change near: it is put off by this much along the lane the ego is in, as a driver stays in
+# lane until a gap comes (a stream passing, a queue alongside), as long as the edge leaves room
+MERGE_PUT_OFF_WITHIN_M, MERGE_PUT_OFF_M = 15.0, 20.0
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -127,19 +130,30 @@ def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: floa
     return gap
 
 
+def _arrival(v: float, v_top: float, dist_m: float) -> tuple[float, float]:
+    """(time [s], speed [m/s]) of the ego ``dist_m`` on, speeding up from ``v`` at EGO_PULL_AWAY_MPS2 to at
+    most ``v_top``."""
+    a = EGO_PULL_AWAY_MPS2
+    speeding_up_m = (v_top * v_top - v * v) / (2.0 * a)
+    if dist_m <= speeding_up_m:
+        v_end = math.sqrt(v * v + 2.0 * a * dist_m)
+        return (v_end - v) / a, v_end
+    return (v_top - v) / a + (dist_m - speeding_up_m) / v_top, v_top
+
+
 class EgoController:
     """Owns the car and the driver; plugs into the sumo / driver / ego / writeback phases.
 
     Ports: its config (the driver and the car's steering geometry), the car (``car``: MuJoCo's
     ``EgoCar`` in a run), the driver's random stream (``cosim.seeds`` "driver" + ``driver_seed``), the
     route's edge list (shared with ``cosim.phases.route``, which extends it in place) and ``path_of``, which
-    turns edges into route geometry (``RoutePath`` from the read-only network view), the route extension
+    turns edges and lane-change delays (``RoutePath.from_network``) into route geometry (``RoutePath`` from the read-only network view), the route extension
     (None: the route is fixed), SUMO's operations for the ego (``bridge``), the step length and ``emit``
     for its events of the step. Each entry point is given the snapshot; ``step`` also the assistance
     systems' displays (Percept kwargs). ``write_back`` returns the ego's additions to /ego/state."""
 
     def __init__(self, config: EgoConfig, *, car: EgoPhysics, rng: np.random.Generator, route: list[str],
-                 path_of: Callable[[list[str]], RoutePath], extension: RouteExtension | None, bridge: EgoBridge,
+                 path_of: Callable[[list[str], dict[int, float]], RoutePath], extension: RouteExtension | None, bridge: EgoBridge,
                  step_s: float, emit: Callable[[SumoEvent], None]):  # fmt: skip
         self.car = car
         self.route = route
@@ -148,7 +162,8 @@ class EgoController:
         self.bridge = bridge
         self.step_s = step_s
         self.emit = emit
-        self.path = path_of(route)
+        self._change_delays: dict[int, float] = {}  # route index -> lane change put off by [m] (RoutePath)
+        self.path = path_of(route, self._change_delays)
         p = config.car
         self.driver = make_driver(config.driver, rng, math.radians(p.max_steer_deg), p.wheelbase_m)
         self.origin: tuple[float, float] | None = None
@@ -160,7 +175,9 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
-        self._merge_held: tuple[float, float] | None = None  # (lane change's arc position, held since [s])
+        self._merge_held: tuple[int, float] | None = (
+            None  # (route index of the lane change's edge, since [s])
+        )
 
     def _start(self, w, slot: int) -> None:
         cx, cy, yaw = frames.sumo_to_mujoco(
@@ -333,8 +350,10 @@ class EgoController:
         return {"crossing_dist_m": max(0.0, float(d[yield_to].min()) - 0.5 * float(w.width_m[idx].max()))}
 
     def _merge(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
-        """Where the ego must wait (``merge_dist_m``: its front at the point where it would begin to enter
-        the next lane) because the next lane change on its path has no gap (see MERGE_LOOK_M)."""
+        """Whether the next lane change on the path has a gap (see MERGE_LOOK_M). Without one the driver
+        puts the change off along the lane it is in (MERGE_PUT_OFF_M at a time, as the edge allows) or,
+        at the edge's end, waits short of it (``merge_dist_m``: its front at the point where it would begin
+        to enter the next lane)."""
         path = self.path
         change = enter_s = None
         first = bisect.bisect_left(path.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)  # may be on it
@@ -347,14 +366,29 @@ class EgoController:
             return {}
         v = max(self.car.state().speed_mps, 0.0)
         d = enter_s - s_front
-        if v * v > 2.0 * MERGE_LATE_DECEL_MPS2 * max(d - 1.0, 0.1):
-            return {}  # too late to stop short: committed
+        if not self._no_gap(w, ego_slot, cx, cy, s_front, change, enter_s, v):
+            return {}
+        late = v * v > 2.0 * MERGE_LATE_DECEL_MPS2 * max(d - 1.0, 0.1)  # stopping short would be too hard
+        if (d < MERGE_PUT_OFF_WITHIN_M or late) and change.delay_m < change.max_delay_m:
+            self._change_delays[change.edge_index] = change.delay_m + MERGE_PUT_OFF_M
+            self._rebuild_path()
+            return {}
+        if late:
+            return {}  # committed
+        if self._merge_held is None or self._merge_held[0] != change.edge_index:
+            self._merge_held = (change.edge_index, w.t_s)
+        return {"merge_dist_m": d}
+
+    def _no_gap(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float, change: LaneChange,
+                enter_s: float, v: float) -> bool:  # fmt: skip
+        """Whether a vehicle in (or coming into) the lanes ``change`` enters leaves the ego no gap when its
+        front reaches ``enter_s``."""
         held = self._merge_held
-        impatient = held is not None and held[0] == change.s_start and w.t_s - held[1] >= MERGE_PATIENCE_S
+        impatient = held is not None and held[0] == change.edge_index and w.t_s - held[1] >= MERGE_PATIENCE_S
         tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
         decel = MERGE_IMPATIENT_DECEL_MPS2 if impatient else MERGE_DECEL_MPS2
-        t_e = (math.sqrt(v * v + 2.0 * EGO_PULL_AWAY_MPS2 * d) - v) / EGO_PULL_AWAY_MPS2
-        front = enter_s - change.s_start  # the ego's front then, from the edge's start
+        t_e, v_e = _arrival(v, max(v, self.path.speed_limit(s_front)[0]), enter_s - s_front)
+        front = enter_s - change.s_start + change.delay_m  # the ego's front then, from the edge's start
         rear = front - self.car.params.length_m
         live, _ = w.live()
         near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < MERGE_LOOK_M + 60.0]
@@ -366,16 +400,14 @@ class EgoController:
             if lane not in change.enters and lane not in change.feeders:
                 continue
             vf = float(w.speed_mps[slot])
-            q = change.position(lane, float(w.x_m[slot]), float(w.y_m[slot])) + vf * t_e
-            if q - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:
-                continue  # clear ahead
-            secure = MERGE_MIN_GAP_M + vf * tau + max(0.0, vf * vf - v * v) / (2.0 * decel)
-            if q <= rear - secure:
-                continue  # far enough behind
-            if held is None or held[0] != change.s_start:
-                self._merge_held = (change.s_start, w.t_s)
-            return {"merge_dist_m": d}
-        return {}
+            p = change.position(lane, float(w.x_m[slot]), float(w.y_m[slot]))
+            if p - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:
+                continue  # clear ahead already (a car crawling in a queue may stop again: not as predicted)
+            secure = MERGE_MIN_GAP_M + vf * tau + max(0.0, vf * vf - v_e * v_e) / (2.0 * decel)
+            if p + vf * t_e <= rear - secure:
+                continue  # far enough behind when the ego gets there
+            return True
+        return False
 
     def _yield_line(self, w: World, s_front: float, tls) -> dict:
         """The next line where the ego must yield (a stop or give-way sign, a minor road, priority to the
@@ -403,9 +435,10 @@ class EgoController:
         return kw
 
     def _rebuild_path(self) -> None:
-        """The route was extended: the path again from the whole route, the projection kept."""
+        """The route was extended or a lane change put off: the path again from the whole route, the
+        projection kept."""
         last_s = self.path._last_s
-        self.path = self._path_of(self.route)
+        self.path = self._path_of(self.route, self._change_delays)
         self.path._last_s = last_s
         self._tls_cache = None
 

@@ -110,3 +110,23 @@ def test_a_lane_change_knows_the_lanes_it_moves_into_and_those_leading_into_them
         math.hypot(30.0, 6.4), abs=0.1)  # fmt: skip
     assert change.position("b_0", 150.0, 0.3) == pytest.approx(40.0)
     assert change.position("side_0", 103.0, -20.0) == pytest.approx(-math.hypot(7.0, 20.0))
+
+
+def test_a_lane_change_put_off_starts_further_on_but_ends_before_the_edge_does():
+    a, b, c = Edge.straight("a", 0, 100, 1), Edge.straight("b", 100, 300, 2), Edge.straight("c", 300, 400, 1)
+    b.from_node = a.node
+    a.node.outgoing.append(b)
+    a.out[b] = [Conn(a.lanes[0], b.lanes[0])]
+    b.out[c] = [Conn(b.lanes[1], c.lanes[0])]
+    net = Net([a, b, c])
+    now = RoutePath.from_network(net, ["a", "b", "c"])
+    later = RoutePath.from_network(net, ["a", "b", "c"], {1: 40.0})
+    latest = RoutePath.from_network(net, ["a", "b", "c"], {1: 1000.0})
+    assert [ch.s_start for ch in (now, later, latest) for ch in ch.lane_changes] == pytest.approx(
+        [100.0, 140.0, 100.0 + 200.0 - 30.0 - 5.0])  # fmt: skip
+    (change,) = later.lane_changes
+    assert change.delay_m == 40.0 and change.max_delay_m == pytest.approx(165.0) and change.edge_index == 1
+    on_lane_0 = later.xy[(later.xy[:, 0] > 100.0) & (later.xy[:, 0] <= 140.0)]
+    assert np.allclose(on_lane_0[:, 1], 0.0)  # in its lane until then
+    assert later.length_m == pytest.approx(now.length_m, abs=0.01)  # the same diagonal, further on
+    assert later.edge_index(150.0) == 1 and later.speed_limit(120.0)[0] == now.speed_limit(120.0)[0]

@@ -105,7 +105,7 @@ class Drive:
         self.paths: list[list[str]] = []
         self.car = KinematicCar(self.cfg.car)
 
-        def path_of(edges):
+        def path_of(edges, delays):
             self.paths.append(list(edges))
             return _path(edges, stop_lines)
 
@@ -301,17 +301,25 @@ def test_the_ego_stops_short_of_a_car_standing_across_its_way_and_goes_once_it_h
     assert d.car.v > 3.0
 
 
-# the route's lane change for the merge tests: on edge b (from y = 200 m) the path moves 3.2 m west into
-# lane b_1 over 30 m; a_1 and the junction's :J_1_0 lead into that lane
-_CHANGE = LaneChange(200.0, 230.0, 1, {"b_1": np.array([(-3.2, 200.0), (-3.2, 400.0)])},
-                     {"a_1": (-3.2, 200.0), ":J_1_0": (-3.2, 200.0)})  # fmt: skip
+# the merge tests' path: straight north, with one lane change on edge b (route index 1, from y = 200 m): 3.2 m
+# west into lane b_1 over 30 m, put off as far as the driver asks (at most 150 m); a_1 and the junction's
+# :J_1_0 lead into b_1
+_CHANGE_LATEST_M = 150.0
+
+
+def _path_with_change(edges, delays) -> RoutePath:
+    delay = min(delays.get(1, 0.0), _CHANGE_LATEST_M)
+    change = LaneChange(200.0 + delay, 230.0 + delay, 1, 1, delay, _CHANGE_LATEST_M,
+                        {"b_1": np.array([(-3.2, 200.0), (-3.2, 400.0)])}, {"a_1": (-3.2, 200.0), ":J_1_0": (-3.2, 200.0)})  # fmt: skip
+    return RoutePath([(0.0, 0.0), (0.0, 3 * EDGE_M)], (), [(k * EDGE_M, 13.89) for k in range(3)],
+                     lane_changes=[change])  # fmt: skip
 
 
 def _merging(d: Drive, front_m: float, speed_mps: float) -> None:
     slot = d.place(front_m)
     d.world.speed_mps[slot] = speed_mps
-    d.ego.path = RoutePath([(0.0, 0.0), (0.0, 3 * EDGE_M)], (), [(k * EDGE_M, 13.89) for k in range(3)],
-                           lane_changes=[_CHANGE])  # fmt: skip
+    d.ego._path_of = _path_with_change
+    d.ego.path = _path_with_change(d.route, {})
 
 
 def _in_target_lane(d: Drive, vid: str, front_m: float, speed_mps: float) -> int:
@@ -326,10 +334,16 @@ def _in_target_lane(d: Drive, vid: str, front_m: float, speed_mps: float) -> int
     return slot
 
 
+def _entering(d: Drive) -> bool:
+    """The ego's front is between where it begins to enter lane b_1 and the end of the lane change."""
+    change, front = d.ego.path.lane_changes[0], 150.0 + d.car.y
+    return change.s_start + 0.2 * (change.s_end - change.s_start) <= front <= change.s_end
+
+
 def test_the_ego_lets_a_car_beside_it_in_the_lane_it_moves_into_go_first():
     """Side by side at 10 m/s, both 50 m before the lane change: driving on blind, the ego would move over
-    onto the car (Monaco, Helsinki: SUMO saw a collision). The driver waits short of the change, lets the car
-    pass and then moves in behind it with room to spare."""
+    onto the car (Monaco, Helsinki: SUMO saw a collision). The driver stays in its lane a little longer,
+    lets the car pass and then moves in behind it with room to spare."""
     d = Drive()
     _merging(d, 150.0, 10.0)
     other = 148.0
@@ -338,10 +352,9 @@ def test_the_ego_lets_a_car_beside_it_in_the_lane_it_moves_into_go_first():
         _in_target_lane(d, "x1", other, 10.0)
         d.step()
         other += 10.0 * STEP_S
-        front = 150.0 + d.car.y
-        if 206.0 <= front <= 230.0:  # the ego enters lane b_1 from 206 m on (a fifth of the diagonal)
-            rear_gaps.append(other - 4.5 - front)
-    assert "merge" in {log["driver_mode"] for log in d.logs}
+        if _entering(d):
+            rear_gaps.append(other - 4.5 - (150.0 + d.car.y))
+    assert d.ego._change_delays or "merge" in {log["driver_mode"] for log in d.logs}
     assert rear_gaps and min(rear_gaps) > 2.0, min(rear_gaps, default=None)
     assert d.car.v > 5.0  # on its way again
 
@@ -354,20 +367,34 @@ def test_gaps_that_are_enough_are_taken_without_waiting():
         _in_target_lane(d, "x1", front_m, speed_mps)
         for _ in range(80):
             d.step()
-        assert "merge" not in {log["driver_mode"] for log in d.logs}
+        assert "merge" not in {log["driver_mode"] for log in d.logs} and not d.ego._change_delays
         assert 150.0 + d.car.y > 230.0
 
 
-def test_a_car_standing_beside_the_lane_change_holds_the_ego_until_it_moves_off():
+def test_the_ego_drives_on_past_a_car_standing_where_it_would_move_over_and_changes_in_front_of_it():
     d = Drive()
     _merging(d, 150.0, 10.0)
     _in_target_lane(d, "x1", 209.0, 0.0)  # stands where the ego would move over
-    for _ in range(300):  # 30 s: past the driver's patience, still no room
+    for _ in range(150):
+        d.step()
+        if _entering(d):
+            assert 150.0 + d.car.y - 4.6 > 209.0 + 2.5  # its rear well clear of the standing car's front
+    assert d.ego._change_delays[1] > 0.0 and 150.0 + d.car.y > d.ego.path.lane_changes[0].s_end
+
+
+def test_a_queue_along_the_whole_lane_holds_the_ego_at_the_last_point_until_it_moves_on():
+    d = Drive()
+    _merging(d, 150.0, 10.0)
+    for k, front_m in enumerate(np.arange(205.0, 400.0, 7.0)):  # standing bumper to bumper (2.5 m apart)
+        _in_target_lane(d, f"q{k}", float(front_m), 0.0)
+    for _ in range(400):  # 40 s: past the driver's patience, still no room
         d.step()
     front = 150.0 + d.car.y
-    assert d.car.v < 0.1 and 200.0 < front < 206.0, front
+    last_entry = 200.0 + _CHANGE_LATEST_M + 0.2 * 30.0
+    assert d.car.v < 0.1 and last_entry - 5.0 < front < last_entry, front
     assert d.logs[-1]["driver_mode"] == "merge"
-    d.world.remove("x1")
+    for k in range(len(np.arange(205.0, 400.0, 7.0))):
+        d.world.remove(f"q{k}")
     for _ in range(100):
         d.step()
-    assert 150.0 + d.car.y > 230.0
+    assert 150.0 + d.car.y > 200.0 + _CHANGE_LATEST_M + 30.0
