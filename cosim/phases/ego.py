@@ -70,6 +70,10 @@ MERGE_LATE_DECEL_MPS2 = 4.5  # stopping short would need harder braking than thi
 # No gap, the change near: it is put off by this much along the lane the ego is in, as a driver stays in
 # lane until a gap comes (a stream passing, a queue alongside), as long as the edge leaves room
 MERGE_PUT_OFF_WITHIN_M, MERGE_PUT_OFF_M = 15.0, 20.0
+# Waiting at the last point (a queue alongside closes every gap): once impatient, the ego asks the car that
+# would follow it to hang back (SUMO's gap control, TraCI openGap), as a driver lets a blinking car in: a
+# bumper gap for the ego's length and both minGaps, for MERGE_ASK_EVERY_S, asked again after that
+MERGE_ASK_GAP_M, MERGE_ASK_EVERY_S = 12.0, 10.0
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -94,6 +98,8 @@ class EgoBridge(FoesBridge, Protocol):
     def edges_left(self, vid: str) -> int: ...
 
     def set_ego_route(self, edges: list[str]) -> SumoEvent | None: ...
+
+    def open_gap(self, vid: str, space_m: float, duration_s: float, max_decel_mps2: float) -> None: ...
 
     def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, *,
                   verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
@@ -366,7 +372,8 @@ class EgoController:
             return {}
         v = max(self.car.state().speed_mps, 0.0)
         d = enter_s - s_front
-        if not self._no_gap(w, ego_slot, cx, cy, s_front, change, enter_s, v):
+        blocked, behind = self._no_gap(w, ego_slot, cx, cy, s_front, change, enter_s, v)
+        if not blocked:
             return {}
         late = v * v > 2.0 * MERGE_LATE_DECEL_MPS2 * max(d - 1.0, 0.1)  # stopping short would be too hard
         if (d < MERGE_PUT_OFF_WITHIN_M or late) and change.delay_m < change.max_delay_m:
@@ -375,14 +382,30 @@ class EgoController:
             return {}
         if late:
             return {}  # committed
-        if self._merge_held is None or self._merge_held[0] != change.edge_index:
-            self._merge_held = (change.edge_index, w.t_s)
+        held = self._merge_held
+        if held is None or held[0] != change.edge_index:
+            held = self._merge_held = (change.edge_index, w.t_s, -math.inf)
+        if (
+            behind is not None
+            and v < 0.5
+            and w.t_s - held[1] >= MERGE_PATIENCE_S
+            and w.t_s - held[2] >= MERGE_ASK_EVERY_S
+        ):
+            # waiting at the last point beside a queue: the car that would follow the ego hangs back
+            self.bridge.open_gap(behind, MERGE_ASK_GAP_M, MERGE_ASK_EVERY_S, MERGE_DECEL_MPS2)
+            self.emit(
+                SumoEvent(
+                    "merge_gap_asked", behind, f"hangs back for the ego to change into {change.edge_index}"
+                )
+            )
+            self._merge_held = (held[0], held[1], w.t_s)
         return {"merge_dist_m": d}
 
     def _no_gap(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float, change: LaneChange,
-                enter_s: float, v: float) -> bool:  # fmt: skip
+                enter_s: float, v: float) -> tuple[bool, str | None]:  # fmt: skip
         """Whether a vehicle in (or coming into) the lanes ``change`` enters leaves the ego no gap when its
-        front reaches ``enter_s``."""
+        front reaches ``enter_s``; and the nearest car on those lanes behind where the ego's rear would be
+        (its follower after the change)."""
         held = self._merge_held
         impatient = held is not None and held[0] == change.edge_index and w.t_s - held[1] >= MERGE_PATIENCE_S
         tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
@@ -392,6 +415,7 @@ class EgoController:
         rear = front - self.car.params.length_m
         live, _ = w.live()
         near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < MERGE_LOOK_M + 60.0]
+        blocked, behind, behind_p = False, None, -math.inf
         for slot in near.tolist():
             code = int(w.edge_code[slot])
             if slot == ego_slot or code < 0:
@@ -401,13 +425,15 @@ class EgoController:
                 continue
             vf = float(w.speed_mps[slot])
             p = change.position(lane, float(w.x_m[slot]), float(w.y_m[slot]))
+            if lane in change.enters and behind_p < p <= rear - MERGE_MIN_GAP_M:
+                behind, behind_p = w.ids[slot], p
             if p - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:
                 continue  # clear ahead already (a car crawling in a queue may stop again: not as predicted)
             secure = MERGE_MIN_GAP_M + vf * tau + max(0.0, vf * vf - v_e * v_e) / (2.0 * decel)
             if p + vf * t_e <= rear - secure:
                 continue  # far enough behind when the ego gets there
-            return True
-        return False
+            blocked = True
+        return blocked, behind
 
     def _yield_line(self, w: World, s_front: float, tls) -> dict:
         """The next line where the ego must yield (a stop or give-way sign, a minor road, priority to the

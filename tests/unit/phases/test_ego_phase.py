@@ -63,6 +63,7 @@ class FakeBridge:
         self.given: list[list[str]] = []
         self.reject_route = False
         self.writes: list[dict] = []
+        self.gaps_asked: list[str] = []  # vehicles asked to hang back (openGap)
 
     def next_tls(self, vid):
         assert vid == EGO_ID
@@ -80,6 +81,9 @@ class FakeBridge:
         self.given.append(list(edges))
         self.held = None
         return None
+
+    def open_gap(self, vid, space_m, duration_s, max_decel_mps2):
+        self.gaps_asked.append(vid)
 
     def write_ego(self, x_m, y_m, heading_deg, speed_mps, *, verify_on_road=True, on_route=False):
         self.writes.append(dict(x=x_m, y=y_m, heading=heading_deg, speed=speed_mps, verify=verify_on_road,
@@ -393,6 +397,10 @@ def test_a_queue_along_the_whole_lane_holds_the_ego_at_the_last_point_until_it_m
     last_entry = 200.0 + _CHANGE_LATEST_M + 0.2 * 30.0
     assert d.car.v < 0.1 and last_entry - 5.0 < front < last_entry, front
     assert d.logs[-1]["driver_mode"] == "merge"
+    # the car that would follow the ego (its front the nearest behind the ego's rear) was asked to hang back
+    follower = max((k for k, f in enumerate(np.arange(205.0, 400.0, 7.0)) if f <= front - 4.6 - 2.5))
+    assert d.bridge.gaps_asked and set(d.bridge.gaps_asked) == {f"q{follower}"}
+    assert [e.kind for e in d.events] == ["merge_gap_asked"] * len(d.bridge.gaps_asked)
     for k in range(len(np.arange(205.0, 400.0, 7.0))):
         d.world.remove(f"q{k}")
     for _ in range(100):
