@@ -136,6 +136,11 @@ def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: floa
     return gap
 
 
+def _enter_s(change: LaneChange) -> float:
+    """Where on the path the ego's front is as the car begins to enter the next lane of a lane change."""
+    return change.s_start + MERGE_ENTER_FRACTION / change.lanes_crossed * (change.s_end - change.s_start)
+
+
 def _arrival(v: float, v_top: float, dist_m: float) -> tuple[float, float]:
     """(time [s], speed [m/s]) of the ego ``dist_m`` on, speeding up from ``v`` at EGO_PULL_AWAY_MPS2 to at
     most ``v_top``."""
@@ -220,6 +225,7 @@ class EgoController:
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
+        kw.update(self._leader_in_new_lane(w, slot, cx, cy, s_front, kw))
         kw.update(self._merge(w, slot, cx, cy, s_front))
         tls = self._next_tls(w, s_front)
         self._check_red_light(tls)
@@ -355,6 +361,40 @@ class EgoController:
             return {}
         return {"crossing_dist_m": max(0.0, float(d[yield_to].min()) - 0.5 * float(w.width_m[idx].max()))}
 
+    def _watched(self, w: World, ego_slot: int, cx: float, cy: float, change: LaneChange, feeders: bool):
+        """(slot, lane id, position from the edge's start [m]) of the vehicles near the ego in the lanes a
+        lane change enters (and, with ``feeders``, in the lanes leading into them)."""
+        live, _ = w.live()
+        near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < MERGE_LOOK_M + 60.0]
+        for slot in near.tolist():
+            code = int(w.edge_code[slot])
+            if slot == ego_slot or code < 0:
+                continue
+            lane = f"{w.edge_names[code]}_{w.lane_index[slot]}"
+            if lane in change.enters or (feeders and lane in change.feeders):
+                yield slot, lane, change.position(lane, float(w.x_m[slot]), float(w.y_m[slot]))
+
+    def _leader_in_new_lane(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float,
+                            seen: dict) -> dict:  # fmt: skip
+        """While the ego moves over, the nearest car ahead in the lane it moves into is its leader too,
+        though the path (half in the old lane) passes it more than a lane's half width away."""
+        path = self.path
+        first = bisect.bisect_left(path.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)
+        change = next((c for c in path.lane_changes[first:] if _enter_s(c) <= s_front <= c.s_end), None)
+        if change is None:
+            return {}
+        front = s_front - change.s_start + change.delay_m
+        best = (seen["leader_gap_m"], None) if seen.get("leader_present") else (math.inf, None)
+        for slot, _, p in self._watched(w, ego_slot, cx, cy, change, feeders=False):
+            gap = p - w.length_m[slot] - front
+            if -0.5 <= gap < best[0]:
+                best = (max(0.0, float(gap)), slot)
+        if best[1] is None:
+            return {}
+        slot = best[1]
+        return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": best[0],
+                "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
+
     def _merge(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
         """Whether the next lane change on the path has a gap (see MERGE_LOOK_M). Without one the driver
         puts the change off along the lane it is in (MERGE_PUT_OFF_M at a time, as the edge allows) or,
@@ -364,7 +404,7 @@ class EgoController:
         change = enter_s = None
         first = bisect.bisect_left(path.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)  # may be on it
         for c in path.lane_changes[first:]:
-            s = c.s_start + MERGE_ENTER_FRACTION / c.lanes_crossed * (c.s_end - c.s_start)
+            s = _enter_s(c)
             if s > s_front:
                 change, enter_s = c, s
                 break
@@ -413,18 +453,9 @@ class EgoController:
         t_e, v_e = _arrival(v, max(v, self.path.speed_limit(s_front)[0]), enter_s - s_front)
         front = enter_s - change.s_start + change.delay_m  # the ego's front then, from the edge's start
         rear = front - self.car.params.length_m
-        live, _ = w.live()
-        near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < MERGE_LOOK_M + 60.0]
         blocked, behind, behind_p = False, None, -math.inf
-        for slot in near.tolist():
-            code = int(w.edge_code[slot])
-            if slot == ego_slot or code < 0:
-                continue
-            lane = f"{w.edge_names[code]}_{w.lane_index[slot]}"
-            if lane not in change.enters and lane not in change.feeders:
-                continue
+        for slot, lane, p in self._watched(w, ego_slot, cx, cy, change, feeders=True):
             vf = float(w.speed_mps[slot])
-            p = change.position(lane, float(w.x_m[slot]), float(w.y_m[slot]))
             if lane in change.enters and behind_p < p <= rear - MERGE_MIN_GAP_M:
                 behind, behind_p = w.ids[slot], p
             if p - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:

@@ -406,3 +406,19 @@ def test_a_queue_along_the_whole_lane_holds_the_ego_at_the_last_point_until_it_m
     for _ in range(100):
         d.step()
     assert 150.0 + d.car.y > 200.0 + _CHANGE_LATEST_M + 30.0
+
+
+def test_moving_over_the_ego_follows_the_car_ahead_in_the_lane_it_moves_into():
+    """Half way across, the path still passes a slow car ahead in the new lane more than a half lane width
+    away (Monaco: the ego ran into one crawling in a queue): it is the ego's leader all the same."""
+    d = Drive()
+    _merging(d, 210.0, 3.0)  # its front past where it begins to enter lane b_1 (206 m)
+    _in_target_lane(d, "x1", 222.0, 1.0)  # rear at 217.5 m
+    d.step()
+    p = d.ego.percept
+    assert p.leader_id == "x1" and p.leader_gap_m == pytest.approx(7.5, abs=0.5) and p.leader_speed_mps == 1.0
+    d = Drive()
+    _merging(d, 150.0, 3.0)  # still in its own lane, far from the change: a car in the other lane is not
+    _in_target_lane(d, "x1", 222.0, 1.0)
+    d.step()
+    assert not d.ego.percept.leader_present
