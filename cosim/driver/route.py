@@ -48,6 +48,7 @@ class LaneChange:
     max_delay_m: float  # how far it could start at the latest
     enters: dict[str, np.ndarray]  # SUMO lane id -> centre line (N, 2) of a lane of the edge it moves into
     feeders: dict[str, tuple[float, float]]  # SUMO lane id leading into one of those -> where that one starts
+    to_lane: int = -1  # index of the lane it moves into
 
     def position(self, lane_id: str, x: float, y: float) -> float:
         """A vehicle's front (x, y) on a watched lane, as metres from the edge's start along its lanes:
@@ -298,7 +299,8 @@ def _lane_change(net, edge, arriving: int, leaving: int, came_by: set[str], wher
                 for lane in (c.getFromLane(), *_via_chain(net, c)):
                     if lane.getID() not in came_by:
                         feeders.setdefault(lane.getID(), start)
-    return dataclasses.replace(where, lanes_crossed=abs(leaving - arriving), enters=enters, feeders=feeders)
+    return dataclasses.replace(where, lanes_crossed=abs(leaving - arriving), enters=enters, feeders=feeders,
+                               to_lane=leaving)  # fmt: skip
 
 
 def _for_cars(lane) -> bool:

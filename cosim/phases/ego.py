@@ -101,8 +101,8 @@ class EgoBridge(FoesBridge, Protocol):
 
     def open_gap(self, vid: str, space_m: float, duration_s: float, max_decel_mps2: float) -> None: ...
 
-    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, *,
-                  verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
+    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, edge_hint: str = "",
+                  lane_hint: int = -1, *, verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
 
 
 class EgoPhysics(Protocol):
@@ -174,6 +174,7 @@ class EgoController:
         self.step_s = step_s
         self.emit = emit
         self._change_delays: dict[int, float] = {}  # route index -> lane change put off by [m] (RoutePath)
+        self._new_lane: tuple[str, int] | None = None  # (edge, lane index) the ego is moving into
         self.path = path_of(route, self._change_delays)
         p = config.car
         self.driver = make_driver(config.driver, rng, math.radians(p.max_steer_deg), p.wheelbase_m)
@@ -381,6 +382,9 @@ class EgoController:
         path = self.path
         first = bisect.bisect_left(path.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)
         change = next((c for c in path.lane_changes[first:] if _enter_s(c) <= s_front <= c.s_end), None)
+        # SUMO has the ego's twin in the new lane from the moment it begins to enter it: the cars there
+        # see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
+        self._new_lane = (self.route[change.edge_index], change.to_lane) if change is not None else None
         if change is None:
             return {}
         front = s_front - change.s_start + change.delay_m
@@ -517,8 +521,10 @@ class EgoController:
         slot = w.slot_of.get(EGO_ID)
         # on its own path and mapped to a lane by SUMO: no need to search the network for the road
         suspicious = p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or w.edge_code[slot] < 0
-        ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious,
-                                  on_route=self._on_sumo_route and not suspicious)  # fmt: skip
+        on_route = self._on_sumo_route and not suspicious
+        hint = self._new_lane if on_route and self._new_lane else ("", -1)
+        ev = self.bridge.write_ego(x, y, angle, st.speed_mps, hint[0], hint[1], verify_on_road=suspicious,
+                                  on_route=on_route)  # fmt: skip
         if ev:
             self.emit(ev)
         return {

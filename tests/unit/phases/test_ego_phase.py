@@ -85,9 +85,10 @@ class FakeBridge:
     def open_gap(self, vid, space_m, duration_s, max_decel_mps2):
         self.gaps_asked.append(vid)
 
-    def write_ego(self, x_m, y_m, heading_deg, speed_mps, *, verify_on_road=True, on_route=False):
+    def write_ego(self, x_m, y_m, heading_deg, speed_mps, edge_hint="", lane_hint=-1, *, verify_on_road=True,
+                  on_route=False):  # fmt: skip
         self.writes.append(dict(x=x_m, y=y_m, heading=heading_deg, speed=speed_mps, verify=verify_on_road,
-                                on_route=on_route))  # fmt: skip
+                                on_route=on_route, hint=(edge_hint, lane_hint)))  # fmt: skip
         return None
 
 
@@ -314,7 +315,7 @@ _CHANGE_LATEST_M = 150.0
 def _path_with_change(edges, delays) -> RoutePath:
     delay = min(delays.get(1, 0.0), _CHANGE_LATEST_M)
     change = LaneChange(200.0 + delay, 230.0 + delay, 1, 1, delay, _CHANGE_LATEST_M,
-                        {"b_1": np.array([(-3.2, 200.0), (-3.2, 400.0)])}, {"a_1": (-3.2, 200.0), ":J_1_0": (-3.2, 200.0)})  # fmt: skip
+                        {"b_1": np.array([(-3.2, 200.0), (-3.2, 400.0)])}, {"a_1": (-3.2, 200.0), ":J_1_0": (-3.2, 200.0)}, 1)  # fmt: skip
     return RoutePath([(0.0, 0.0), (0.0, 3 * EDGE_M)], (), [(k * EDGE_M, 13.89) for k in range(3)],
                      lane_changes=[change])  # fmt: skip
 
@@ -413,10 +414,12 @@ def test_moving_over_the_ego_follows_the_car_ahead_in_the_lane_it_moves_into():
     away (Monaco: the ego ran into one crawling in a queue): it is the ego's leader all the same."""
     d = Drive()
     _merging(d, 210.0, 3.0)  # its front past where it begins to enter lane b_1 (206 m)
+    d.world.edge_code[d.world.slot_of[EGO_ID]] = d.world.intern_edge("b")
     _in_target_lane(d, "x1", 222.0, 1.0)  # rear at 217.5 m
     d.step()
     p = d.ego.percept
     assert p.leader_id == "x1" and p.leader_gap_m == pytest.approx(7.5, abs=0.5) and p.leader_speed_mps == 1.0
+    assert d.bridge.writes[-1]["hint"] == ("b", 1)  # SUMO puts its twin in the new lane already
     d = Drive()
     _merging(d, 150.0, 3.0)  # still in its own lane, far from the change: a car in the other lane is not
     _in_target_lane(d, "x1", 222.0, 1.0)
