@@ -48,7 +48,7 @@ class LaneChange:
     max_delay_m: float  # how far it could start at the latest
     enters: dict[str, np.ndarray]  # SUMO lane id -> centre line (N, 2) of a lane of the edge it moves into
     feeders: dict[str, tuple[float, float]]  # SUMO lane id leading into one of those -> where that one starts
-    to_lane: int = -1  # index of the lane it moves into
+    to_lane_id: str = ""  # the lane it moves into (one of ``enters``)
 
     def position(self, lane_id: str, x: float, y: float) -> float:
         """A vehicle's front (x, y) on a watched lane, as metres from the edge's start along its lanes:
@@ -300,7 +300,7 @@ def _lane_change(net, edge, arriving: int, leaving: int, came_by: set[str], wher
                     if lane.getID() not in came_by:
                         feeders.setdefault(lane.getID(), start)
     return dataclasses.replace(where, lanes_crossed=abs(leaving - arriving), enters=enters, feeders=feeders,
-                               to_lane=leaving)  # fmt: skip
+                               to_lane_id=entered[-1].getID())  # fmt: skip
 
 
 def _for_cars(lane) -> bool:

@@ -101,8 +101,8 @@ class EgoBridge(FoesBridge, Protocol):
 
     def open_gap(self, vid: str, space_m: float, duration_s: float, max_decel_mps2: float) -> None: ...
 
-    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, edge_hint: str = "",
-                  lane_hint: int = -1, *, verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
+    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, *,
+                  verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
 
 
 class EgoPhysics(Protocol):
@@ -134,6 +134,17 @@ def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: floa
             continue
         gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
     return gap
+
+
+def _nearest_point(line: np.ndarray, x: float, y: float) -> tuple[float, float]:
+    """The point of a polyline (N, 2) nearest to (x, y)."""
+    a, d = line[:-1], np.diff(line, axis=0)
+    t = np.clip(
+        ((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / np.maximum((d**2).sum(axis=1), 1e-12), 0, 1
+    )
+    pts = a + t[:, None] * d
+    k = int(((pts - (x, y)) ** 2).sum(axis=1).argmin())
+    return float(pts[k, 0]), float(pts[k, 1])
 
 
 def _enter_s(change: LaneChange) -> float:
@@ -174,7 +185,7 @@ class EgoController:
         self.step_s = step_s
         self.emit = emit
         self._change_delays: dict[int, float] = {}  # route index -> lane change put off by [m] (RoutePath)
-        self._new_lane: tuple[str, int] | None = None  # (edge, lane index) the ego is moving into
+        self._new_lane: np.ndarray | None = None  # centre line of the lane the ego is moving into
         self.path = path_of(route, self._change_delays)
         p = config.car
         self.driver = make_driver(config.driver, rng, math.radians(p.max_steer_deg), p.wheelbase_m)
@@ -384,7 +395,7 @@ class EgoController:
         change = next((c for c in path.lane_changes[first:] if _enter_s(c) <= s_front <= c.s_end), None)
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it: the cars there
         # see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
-        self._new_lane = (self.route[change.edge_index], change.to_lane) if change is not None else None
+        self._new_lane = change.enters[change.to_lane_id] if change is not None else None
         if change is None:
             return {}
         front = s_front - change.s_start + change.delay_m
@@ -522,9 +533,9 @@ class EgoController:
         # on its own path and mapped to a lane by SUMO: no need to search the network for the road
         suspicious = p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or w.edge_code[slot] < 0
         on_route = self._on_sumo_route and not suspicious
-        hint = self._new_lane if on_route and self._new_lane else ("", -1)
-        ev = self.bridge.write_ego(x, y, angle, st.speed_mps, hint[0], hint[1], verify_on_road=suspicious,
-                                  on_route=on_route)  # fmt: skip
+        if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
+            x, y = _nearest_point(self._new_lane, x, y)
+        ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route)
         if ev:
             self.emit(ev)
         return {

@@ -85,10 +85,9 @@ class FakeBridge:
     def open_gap(self, vid, space_m, duration_s, max_decel_mps2):
         self.gaps_asked.append(vid)
 
-    def write_ego(self, x_m, y_m, heading_deg, speed_mps, edge_hint="", lane_hint=-1, *, verify_on_road=True,
-                  on_route=False):  # fmt: skip
+    def write_ego(self, x_m, y_m, heading_deg, speed_mps, *, verify_on_road=True, on_route=False):
         self.writes.append(dict(x=x_m, y=y_m, heading=heading_deg, speed=speed_mps, verify=verify_on_road,
-                                on_route=on_route, hint=(edge_hint, lane_hint)))  # fmt: skip
+                                on_route=on_route))  # fmt: skip
         return None
 
 
@@ -315,7 +314,7 @@ _CHANGE_LATEST_M = 150.0
 def _path_with_change(edges, delays) -> RoutePath:
     delay = min(delays.get(1, 0.0), _CHANGE_LATEST_M)
     change = LaneChange(200.0 + delay, 230.0 + delay, 1, 1, delay, _CHANGE_LATEST_M,
-                        {"b_1": np.array([(-3.2, 200.0), (-3.2, 400.0)])}, {"a_1": (-3.2, 200.0), ":J_1_0": (-3.2, 200.0)}, 1)  # fmt: skip
+                        {"b_1": np.array([(-3.2, 200.0), (-3.2, 400.0)])}, {"a_1": (-3.2, 200.0), ":J_1_0": (-3.2, 200.0)}, "b_1")  # fmt: skip
     return RoutePath([(0.0, 0.0), (0.0, 3 * EDGE_M)], (), [(k * EDGE_M, 13.89) for k in range(3)],
                      lane_changes=[change])  # fmt: skip
 
@@ -419,7 +418,8 @@ def test_moving_over_the_ego_follows_the_car_ahead_in_the_lane_it_moves_into():
     d.step()
     p = d.ego.percept
     assert p.leader_id == "x1" and p.leader_gap_m == pytest.approx(7.5, abs=0.5) and p.leader_speed_mps == 1.0
-    assert d.bridge.writes[-1]["hint"] == ("b", 1)  # SUMO puts its twin in the new lane already
+    # SUMO is given the ego's pose on the new lane: it maps its twin onto that lane already
+    assert d.bridge.writes[-1]["x"] == pytest.approx(-3.2) and d.bridge.writes[-1]["on_route"]
     d = Drive()
     _merging(d, 150.0, 3.0)  # still in its own lane, far from the change: a car in the other lane is not
     _in_target_lane(d, "x1", 222.0, 1.0)
