@@ -61,6 +61,9 @@ BETWEEN_ALLOWANCE = 2.0
 DIVERT_AFTER_S = 5.0  # a vehicle between the lead and the ego this long is sent off the lead's way [s]
 DIVERT_AHEAD_M = 40.0  # ... at a junction at least this far ahead of it, room to pick its lane [m]
 DIVERT_RETRY_S = 5.0  # when no junction offers a way out yet, ask again after this long [s]
+# one vehicle is one cut-in: the ego's leader may flip between it and the lead while it stays between them
+# (beside the ego in the lane the ego moves into, then ahead of it) [s]
+CUT_IN_ONCE_S = 60.0
 
 
 def _closing_cap(v_behind: float, gap_m: float, limit_m: float) -> float:
@@ -121,6 +124,7 @@ class LeadVehicle:
         self._yield_wait: tuple | None = None  # (last distance to the yield line, when the lead came near it)
         self._between: tuple[str, float] | None = None  # (vehicle between the lead and the ego, since when)
         self._divert_asked: dict[str, float] = {}  # vehicle -> when it was last asked to turn off
+        self._cut_in_seen: dict[str, float] = {}  # vehicle -> when its cut-in was counted
 
     def step(self, w: World) -> None:
         lead, ego = w.slot_of.get(LEAD_ID), w.slot_of.get(EGO_ID)
@@ -128,7 +132,7 @@ class LeadVehicle:
             return
         self.gap_m = self._gap(w, lead, ego)
         self._keep_to_the_egos_lane(w, lead)
-        self._log_cut_in()
+        self._log_cut_in(w.t_s)
         self._divert_cut_in(w)
         v_ego = float(w.speed_mps[ego])
         caps = []
@@ -225,11 +229,13 @@ class LeadVehicle:
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 
-    def _log_cut_in(self) -> None:
+    def _log_cut_in(self, t: float) -> None:
         """Another vehicle has become the ego's leader while the lead is still ahead of it."""
         percept = getattr(self.ego, "percept", None)
         leader = percept.leader_id if percept is not None and percept.leader_present else None
-        if self._ego_leader == LEAD_ID and leader not in (None, LEAD_ID) and self.gap_m > 0:
+        if (self._ego_leader == LEAD_ID and leader not in (None, LEAD_ID) and self.gap_m > 0
+                and t - self._cut_in_seen.get(leader, -math.inf) > CUT_IN_ONCE_S):  # fmt: skip
+            self._cut_in_seen[leader] = t
             self.cut_ins += 1
             self.emit(SumoEvent("lead_cut_in", leader, f"between the lead and the ego ({self.gap_m:.0f} m)",
                                 self.gap_m))  # fmt: skip

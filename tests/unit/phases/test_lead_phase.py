@@ -177,6 +177,11 @@ def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
         and [e.kind for e in sim.events] == ["lead_cut_in"]
         and sim.events[0].vehicle == "scv7"
     )
+    for k, seen in enumerate([LEAD_ID, "scv7", LEAD_ID, "scv7", LEAD_ID, "scv8"]):  # the ego's leader flips
+        sim.world.t_s = 1.0 + k
+        sim.ego.sees(seen)
+        lead.step(sim.world)
+    assert lead.cut_ins == 2 and [e.vehicle for e in sim.events] == ["scv7", "scv8"]  # scv7 counted once
 
 
 def test_a_vehicle_that_stays_between_the_lead_and_the_ego_is_sent_off_the_leads_way():
