@@ -379,7 +379,7 @@ def test_the_ego_drives_on_past_a_car_standing_where_it_would_move_over_and_chan
     d = Drive()
     _merging(d, 150.0, 10.0)
     _in_target_lane(d, "x1", 209.0, 0.0)  # stands where the ego would move over
-    for _ in range(250):
+    for _ in range(150):
         d.step()
         if _entering(d):
             assert 150.0 + d.car.y - 4.6 > 209.0 + 2.5  # its rear well clear of the standing car's front
@@ -391,7 +391,7 @@ def test_a_queue_along_the_whole_lane_holds_the_ego_at_the_last_point_until_it_m
     _merging(d, 150.0, 10.0)
     for k, front_m in enumerate(np.arange(205.0, 400.0, 7.0)):  # standing bumper to bumper (2.5 m apart)
         _in_target_lane(d, f"q{k}", float(front_m), 0.0)
-    for _ in range(900):  # 90 s: along the queue, then past the driver's patience, still no room
+    for _ in range(400):  # 40 s: along the queue, then past the driver's patience, still no room
         d.step()
     front = 150.0 + d.car.y
     last_entry = 200.0 + _CHANGE_LATEST_M + 0.2 * 30.0
