@@ -56,12 +56,21 @@ class LaneChange:
         start = self.feeders.get(lane_id)
         if start is not None:
             return -math.dist(start, (x, y))
-        shape = self.enters[lane_id]
-        a, d = shape[:-1], np.diff(shape, axis=0)
-        seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
-        t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
-        k = int((((a + t[:, None] * d) - (x, y)) ** 2).sum(axis=1).argmin())
-        return float(np.sqrt(seg2[:k]).sum() + t[k] * math.sqrt(seg2[k]))
+        return _closest_on(self.enters[lane_id], x, y)[2]
+
+    def onto_new_lane(self, x: float, y: float) -> tuple[float, float]:
+        """The point of the new lane's centre line nearest to (x, y)."""
+        return _closest_on(self.enters[self.to_lane_id], x, y)[:2]
+
+
+def _closest_on(line: np.ndarray, x: float, y: float) -> tuple[float, float, float]:
+    """(x, y, arc position) of the point of the polyline ``line`` (N, 2) nearest to (x, y)."""
+    a, d = line[:-1], np.diff(line, axis=0)
+    seg2 = np.maximum((d**2).sum(axis=1), 1e-12)
+    t = np.clip(((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / seg2, 0.0, 1.0)
+    pts = a + t[:, None] * d
+    k = int(((pts - (x, y)) ** 2).sum(axis=1).argmin())
+    return float(pts[k, 0]), float(pts[k, 1]), float(np.sqrt(seg2[:k]).sum() + t[k] * math.sqrt(seg2[k]))
 
 
 class RoutePath:
@@ -377,8 +386,9 @@ class _Polyline:
         return s0
 
 
-def _head(shape: list, dist: float) -> list:
-    """The first ``dist`` metres of a polyline."""
+def _split(shape: list, dist: float) -> tuple[list, list]:
+    """A polyline cut ``dist`` metres along it: (the part before, the part after), both with the cut point
+    (the whole line and its last point when it is shorter)."""
     acc = 0.0
     for i in range(1, len(shape)):
         seg = math.dist(shape[i - 1], shape[i])
@@ -386,21 +396,14 @@ def _head(shape: list, dist: float) -> list:
             f = (dist - acc) / seg if seg else 0.0
             p = (shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]),
                  shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]))  # fmt: skip
-            return [*shape[:i], p]
+            return [*shape[:i], p], [p, *shape[i:]]
         acc += seg
-    return list(shape)
+    return list(shape), shape[-1:]
+
+
+def _head(shape: list, dist: float) -> list:
+    return _split(shape, dist)[0]
 
 
 def _trim_start(shape: list, dist: float) -> list:
-    acc = 0.0
-    for i in range(1, len(shape)):
-        seg = math.dist(shape[i - 1], shape[i])
-        if acc + seg >= dist:
-            f = (dist - acc) / seg if seg else 0.0
-            p = (
-                shape[i - 1][0] + f * (shape[i][0] - shape[i - 1][0]),
-                shape[i - 1][1] + f * (shape[i][1] - shape[i - 1][1]),
-            )
-            return [p, *shape[i:]]
-        acc += seg
-    return shape[-1:]
+    return _split(shape, dist)[1]

@@ -138,17 +138,6 @@ def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: floa
     return gap
 
 
-def _nearest_point(line: np.ndarray, x: float, y: float) -> tuple[float, float]:
-    """The point of a polyline (N, 2) nearest to (x, y)."""
-    a, d = line[:-1], np.diff(line, axis=0)
-    t = np.clip(
-        ((x - a[:, 0]) * d[:, 0] + (y - a[:, 1]) * d[:, 1]) / np.maximum((d**2).sum(axis=1), 1e-12), 0, 1
-    )
-    pts = a + t[:, None] * d
-    k = int(((pts - (x, y)) ** 2).sum(axis=1).argmin())
-    return float(pts[k, 0]), float(pts[k, 1])
-
-
 def _enter_s(change: LaneChange) -> float:
     """Where on the path the ego's front is as the car begins to enter the next lane of a lane change."""
     return change.s_start + MERGE_ENTER_FRACTION / change.lanes_crossed * (change.s_end - change.s_start)
@@ -171,14 +160,14 @@ class EgoController:
     Ports: its config (the driver and the car's steering geometry), the car (``car``: MuJoCo's
     ``EgoCar`` in a run), the driver's random stream (``cosim.seeds`` "driver" + ``driver_seed``), the
     route's edge list (shared with ``cosim.phases.route``, which extends it in place) and ``path_of``, which
-    turns edges and lane-change delays (``RoutePath.from_network``) into route geometry (``RoutePath`` from the read-only network view), the route extension
-    (None: the route is fixed), SUMO's operations for the ego (``bridge``), the step length and ``emit``
-    for its events of the step. Each entry point is given the snapshot; ``step`` also the assistance
+    turns edges and lane-change delays into route geometry (``RoutePath.from_network`` on the read-only
+    network view), the route extension (None: the route is fixed), SUMO's operations for the ego
+    (``bridge``), the step length and ``emit`` for its events of the step. Each entry point is given the snapshot; ``step`` also the assistance
     systems' displays (Percept kwargs). ``write_back`` returns the ego's additions to /ego/state."""
 
     def __init__(self, config: EgoConfig, *, car: EgoPhysics, rng: np.random.Generator, route: list[str],
-                 path_of: Callable[[list[str], dict[int, float]], RoutePath], extension: RouteExtension | None, bridge: EgoBridge,
-                 step_s: float, emit: Callable[[SumoEvent], None]):  # fmt: skip
+                 path_of: Callable[[list[str], dict[int, float]], RoutePath], extension: RouteExtension | None,
+                 bridge: EgoBridge, step_s: float, emit: Callable[[SumoEvent], None]):  # fmt: skip
         self.car = car
         self.route = route
         self._path_of = path_of
@@ -187,7 +176,7 @@ class EgoController:
         self.step_s = step_s
         self.emit = emit
         self._change_delays: dict[int, float] = {}  # route index -> lane change put off by [m] (RoutePath)
-        self._new_lane: np.ndarray | None = None  # centre line of the lane the ego is moving into
+        self._new_lane: LaneChange | None = None  # the lane change the ego is making (into its new lane)
         self.path = path_of(route, self._change_delays)
         p = config.car
         self.driver = make_driver(config.driver, rng, math.radians(p.max_steer_deg), p.wheelbase_m)
@@ -200,9 +189,8 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
-        self._merge_held: tuple[int, float] | None = (
-            None  # (route index of the lane change's edge, since [s])
-        )
+        # waiting for a gap: (route index of the lane change's edge, since [s], last asked for a gap [s])
+        self._merge_held: tuple[int, float, float] | None = None
 
     def _start(self, w, slot: int) -> None:
         cx, cy, yaw = frames.sumo_to_mujoco(
@@ -397,7 +385,7 @@ class EgoController:
         change = next((c for c in path.lane_changes[first:] if _enter_s(c) <= s_front <= c.s_end), None)
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it: the cars there
         # see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
-        self._new_lane = change.enters[change.to_lane_id] if change is not None else None
+        self._new_lane = change
         if change is None:
             return {}
         front = s_front - change.s_start + change.delay_m
@@ -451,11 +439,8 @@ class EgoController:
         ):
             # waiting at the last point beside a queue: the car that would follow the ego hangs back
             self.bridge.open_gap(behind, MERGE_ASK_GAP_M, MERGE_ASK_EVERY_S, MERGE_DECEL_MPS2)
-            self.emit(
-                SumoEvent(
-                    "merge_gap_asked", behind, f"hangs back for the ego to change into {change.edge_index}"
-                )
-            )
+            why = f"hangs back for the ego to change into {change.to_lane_id}"
+            self.emit(SumoEvent("merge_gap_asked", behind, why))
             self._merge_held = (held[0], held[1], w.t_s)
         return {"merge_dist_m": d}
 
@@ -537,7 +522,7 @@ class EgoController:
         suspicious = p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or w.edge_code[slot] < 0
         on_route = self._on_sumo_route and not suspicious
         if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
-            x, y = _nearest_point(self._new_lane, x, y)
+            x, y = self._new_lane.onto_new_lane(x, y)
         ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route)
         if ev:
             self.emit(ev)
