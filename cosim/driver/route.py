@@ -8,7 +8,7 @@ hand-made centre line).
 
 from __future__ import annotations
 
-import dataclasses
+import bisect
 import itertools
 import math
 from dataclasses import dataclass
@@ -17,9 +17,10 @@ from functools import cached_property
 import numpy as np
 
 LANE_CHANGE_LENGTH_M = 30.0  # the path changes to the lane of the next connection over this length [m]
-LANE_CHANGE_END_MARGIN_M = (
-    5.0  # a lane change put off (``change_delays``) still ends this far before the edge's end
-)
+# a lane change put off (``change_delays``) still ends this far before the edge's end [m]
+LANE_CHANGE_END_MARGIN_M = 5.0
+# the car's side reaches the next lane a fifth of the way across it: (3.2 m lane - 1.8 m car) / 2 / 3.2 m = 0.22
+LANE_CHANGE_ENTER_FRACTION = 0.2
 BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
 PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
 
@@ -48,7 +49,12 @@ class LaneChange:
     max_delay_m: float  # how far it could start at the latest
     enters: dict[str, np.ndarray]  # SUMO lane id -> centre line (N, 2) of a lane of the edge it moves into
     feeders: dict[str, tuple[float, float]]  # SUMO lane id leading into one of those -> where that one starts
-    to_lane_id: str = ""  # the lane it moves into (one of ``enters``)
+    to_lane_id: str  # the lane it moves into (one of ``enters``)
+
+    @property
+    def enter_s(self) -> float:
+        """Where on the path the front is as the car begins to enter the next lane."""
+        return self.s_start + LANE_CHANGE_ENTER_FRACTION / self.lanes_crossed * (self.s_end - self.s_start)
 
     def position(self, lane_id: str, x: float, y: float) -> float:
         """A vehicle's front (x, y) on a watched lane, as metres from the edge's start along its lanes:
@@ -142,8 +148,11 @@ class RoutePath:
                 diagonal = math.dist(line.pts[-1], shape[0])
             s0 = line.extend(shape)
             if changes:
-                lane_changes.append(_lane_change(net, edge, entry_lane.getIndex(), lane.getIndex(), came_by,
-                                                 LaneChange(s0, s0 + diagonal, 0, i, delay, latest, {}, {})))  # fmt: skip
+                enters, feeders, to_lane = _watched_lanes(
+                    net, edge, entry_lane.getIndex(), lane.getIndex(), came_by
+                )
+                lane_changes.append(LaneChange(s0, s0 + diagonal, abs(lane.getIndex() - entry_lane.getIndex()), i,
+                                               delay, latest, enters, feeders, to_lane))  # fmt: skip
             limits.append((edge_start, lane.getSpeed()))
             if conns:
                 c = conns[0]
@@ -256,6 +265,19 @@ class RoutePath:
         k = np.clip(self.s.searchsorted(s, side="right") - 1, 0, len(seg_len) - 1)
         return dx[k] / seg_len[k], dy[k] / seg_len[k]
 
+    def lane_changes_around(self, s_front: float) -> tuple[LaneChange | None, LaneChange | None]:
+        """(the lane change the car is making, its front between where it begins to enter the new lane and
+        the change's end; the next one it has not begun to enter) for its front at ``s_front``."""
+        current = None
+        first = bisect.bisect_left(self.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)  # may be on it
+        for c in self.lane_changes[first:]:
+            enter = c.enter_s
+            if enter > s_front:
+                return current, c
+            if current is None and s_front <= c.s_end:
+                current = c
+        return current, None
+
     def speed_limit(self, s: float) -> tuple[float, float | None, float]:
         """(limit here, next different limit or None, distance to it)."""
         i = max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)
@@ -292,10 +314,11 @@ def _via_chain(net, conn) -> list:
     return lanes
 
 
-def _lane_change(net, edge, arriving: int, leaving: int, came_by: set[str], where: LaneChange) -> LaneChange:
-    """The lane change on ``edge`` from lane index ``arriving`` to ``leaving`` (``where``: its arc positions
-    and delay): the lanes it moves into and those leading into them (from the edges entering the junction
-    before it, through the junction's internal lanes), except the lanes ``came_by`` the path itself."""
+def _watched_lanes(net, edge, arriving: int, leaving: int, came_by: set[str]):
+    """For a lane change on ``edge`` from lane index ``arriving`` to ``leaving``: the lanes it moves into
+    (id -> centre line), those leading into them from the edges entering the junction before it, through its
+    internal lanes, except the lanes ``came_by`` the path itself (id -> where the lane they lead into starts),
+    and the id of the lane it ends in."""
     step = 1 if leaving > arriving else -1
     entered = [edge.getLane(i) for i in range(arriving + step, leaving + step, step)]
     enters = {lane.getID(): np.asarray(lane.getShape(), dtype=np.float64)[:, :2] for lane in entered}
@@ -308,8 +331,7 @@ def _lane_change(net, edge, arriving: int, leaving: int, came_by: set[str], wher
                 for lane in (c.getFromLane(), *_via_chain(net, c)):
                     if lane.getID() not in came_by:
                         feeders.setdefault(lane.getID(), start)
-    return dataclasses.replace(where, lanes_crossed=abs(leaving - arriving), enters=enters, feeders=feeders,
-                               to_lane_id=entered[-1].getID())  # fmt: skip
+    return enters, feeders, entered[-1].getID()
 
 
 def _for_cars(lane) -> bool:

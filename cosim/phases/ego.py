@@ -19,7 +19,7 @@ import numpy as np
 from cosim import frames
 from cosim.driver import Controls, Percept, make_driver
 from cosim.driver.gap_acceptance import arrival_time_s, movement_of
-from cosim.driver.route import LANE_CHANGE_LENGTH_M, LaneChange, RoutePath
+from cosim.driver.route import LaneChange, RoutePath
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
 from cosim.runconfig import EgoConfig
@@ -54,10 +54,10 @@ EGO_PULL_AWAY_MPS2 = 1.5  # the ego's arrival at the crossing is estimated accel
 CROSS_MARGIN_S = 1.0  # the ego goes first only if its rear is past the crossing this long before the car
 # Lane changes on the path (RoutePath.lane_changes): the driver moves over only into a gap in the lanes it
 # enters. The gap is judged for when the front bumper reaches the point where the car begins to enter the
-# next lane, MERGE_ENTER_FRACTION of the way across per lane crossed ((3.2 m lane - 1.8 m car) / 2 / 3.2 m
-# = 0.22), predicted at constant speeds from MERGE_LOOK_M before it; the ego accelerating at EGO_PULL_AWAY_MPS2.
+# next lane (LaneChange.enter_s), predicted at constant speeds from MERGE_LOOK_M before it; the ego
+# accelerating at EGO_PULL_AWAY_MPS2. Vehicles within MERGE_NEAR_M of the ego are looked at.
 MERGE_LOOK_M = 60.0
-MERGE_ENTER_FRACTION = 0.2
+MERGE_NEAR_M = MERGE_LOOK_M + 60.0
 # The car it moves in front of must be left SUMO's secure gap (MSCFModel::getSecureGap, Krauss: its speed
 # times its reaction time tau plus the difference of the two braking distances at its deceleration) and its
 # minGap; a car ahead must be MERGE_FRONT_GAP_M clear of the ego's front. A driver held MERGE_PATIENCE_S
@@ -136,11 +136,6 @@ def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: floa
             continue
         gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
     return gap
-
-
-def _enter_s(change: LaneChange) -> float:
-    """Where on the path the ego's front is as the car begins to enter the next lane of a lane change."""
-    return change.s_start + MERGE_ENTER_FRACTION / change.lanes_crossed * (change.s_end - change.s_start)
 
 
 def _arrival(v: float, v_top: float, dist_m: float) -> tuple[float, float]:
@@ -227,8 +222,18 @@ class EgoController:
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
-        kw.update(self._leader_in_new_lane(w, slot, cx, cy, s_front, kw))
-        kw.update(self._merge(w, slot, cx, cy, s_front))
+        # SUMO has the ego's twin in the new lane from the moment it begins to enter it (write_back): the cars
+        # there see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
+        self._new_lane, upcoming = self.path.lane_changes_around(s_front)
+        if self._new_lane is not None or (
+            upcoming is not None and upcoming.enter_s - s_front <= MERGE_LOOK_M
+        ):
+            live, _ = w.live()
+            near = live[(np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < MERGE_NEAR_M) & (live != slot)]
+            if self._new_lane is not None:
+                kw.update(self._leader_in_new_lane(w, near, self._new_lane, s_front, kw))
+            if upcoming is not None:
+                kw.update(self._merge(w, near, upcoming, s_front))
         tls = self._next_tls(w, s_front)
         self._check_red_light(tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
@@ -363,34 +368,24 @@ class EgoController:
             return {}
         return {"crossing_dist_m": max(0.0, float(d[yield_to].min()) - 0.5 * float(w.width_m[idx].max()))}
 
-    def _watched(self, w: World, ego_slot: int, cx: float, cy: float, change: LaneChange, feeders: bool):
-        """(slot, lane id, position from the edge's start [m]) of the vehicles near the ego in the lanes a
-        lane change enters (and, with ``feeders``, in the lanes leading into them)."""
-        live, _ = w.live()
-        near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < MERGE_LOOK_M + 60.0]
+    def _watched(self, w: World, near: np.ndarray, change: LaneChange, feeders: bool):
+        """(slot, lane id, position from the edge's start [m]) of the vehicles ``near`` the ego in the lanes
+        a lane change enters (and, with ``feeders``, in the lanes leading into them)."""
         for slot in near.tolist():
             code = int(w.edge_code[slot])
-            if slot == ego_slot or code < 0:
+            if code < 0:
                 continue
             lane = f"{w.edge_names[code]}_{w.lane_index[slot]}"
             if lane in change.enters or (feeders and lane in change.feeders):
                 yield slot, lane, change.position(lane, float(w.x_m[slot]), float(w.y_m[slot]))
 
-    def _leader_in_new_lane(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float,
+    def _leader_in_new_lane(self, w: World, near: np.ndarray, change: LaneChange, s_front: float,
                             seen: dict) -> dict:  # fmt: skip
         """While the ego moves over, the nearest car ahead in the lane it moves into is its leader too,
         though the path (half in the old lane) passes it more than a lane's half width away."""
-        path = self.path
-        first = bisect.bisect_left(path.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)
-        change = next((c for c in path.lane_changes[first:] if _enter_s(c) <= s_front <= c.s_end), None)
-        # SUMO has the ego's twin in the new lane from the moment it begins to enter it: the cars there
-        # see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
-        self._new_lane = change
-        if change is None:
-            return {}
         front = s_front - change.s_start + change.delay_m
         best = (seen["leader_gap_m"], None) if seen.get("leader_present") else (math.inf, None)
-        for slot, _, p in self._watched(w, ego_slot, cx, cy, change, feeders=False):
+        for slot, _, p in self._watched(w, near, change, feeders=False):
             gap = p - w.length_m[slot] - front
             if -0.5 <= gap < best[0]:
                 best = (max(0.0, float(gap)), slot)
@@ -400,24 +395,17 @@ class EgoController:
         return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": best[0],
                 "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
-    def _merge(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
-        """Whether the next lane change on the path has a gap (see MERGE_LOOK_M). Without one the driver
-        puts the change off along the lane it is in (MERGE_PUT_OFF_M at a time, as the edge allows) or,
-        at the edge's end, waits short of it (``merge_dist_m``: its front at the point where it would begin
-        to enter the next lane)."""
-        path = self.path
-        change = enter_s = None
-        first = bisect.bisect_left(path.lane_change_s, s_front - LANE_CHANGE_LENGTH_M - 1.0)  # may be on it
-        for c in path.lane_changes[first:]:
-            s = _enter_s(c)
-            if s > s_front:
-                change, enter_s = c, s
-                break
-        if change is None or enter_s - s_front > MERGE_LOOK_M:
+    def _merge(self, w: World, near: np.ndarray, change: LaneChange, s_front: float) -> dict:
+        """Whether the next lane change on the path (``change``) has a gap (see MERGE_LOOK_M). Without one
+        the driver puts the change off along the lane it is in (MERGE_PUT_OFF_M at a time, as the edge
+        allows) or, at the edge's end, waits short of it (``merge_dist_m``: its front at the point where it
+        would begin to enter the next lane)."""
+        enter_s = change.enter_s
+        if enter_s - s_front > MERGE_LOOK_M:
             return {}
         v = max(self.car.state().speed_mps, 0.0)
         d = enter_s - s_front
-        blocked, behind = self._no_gap(w, ego_slot, cx, cy, s_front, change, enter_s, v)
+        blocked, behind = self._no_gap(w, near, s_front, change, enter_s, v)
         if not blocked:
             return {}
         late = v * v > 2.0 * MERGE_LATE_DECEL_MPS2 * max(d - 1.0, 0.1)  # stopping short would be too hard
@@ -444,8 +432,8 @@ class EgoController:
             self._merge_held = (held[0], held[1], w.t_s)
         return {"merge_dist_m": d}
 
-    def _no_gap(self, w: World, ego_slot: int, cx: float, cy: float, s_front: float, change: LaneChange,
-                enter_s: float, v: float) -> tuple[bool, str | None]:  # fmt: skip
+    def _no_gap(self, w: World, near: np.ndarray, s_front: float, change: LaneChange, enter_s: float,
+                v: float) -> tuple[bool, str | None]:  # fmt: skip
         """Whether a vehicle in (or coming into) the lanes ``change`` enters leaves the ego no gap when its
         front reaches ``enter_s``; and the nearest car on those lanes behind where the ego's rear would be
         (its follower after the change)."""
@@ -457,7 +445,7 @@ class EgoController:
         front = enter_s - change.s_start + change.delay_m  # the ego's front then, from the edge's start
         rear = front - self.car.params.length_m
         blocked, behind, behind_p = False, None, -math.inf
-        for slot, lane, p in self._watched(w, ego_slot, cx, cy, change, feeders=True):
+        for slot, lane, p in self._watched(w, near, change, feeders=True):
             vf = float(w.speed_mps[slot])
             if lane in change.enters and behind_p < p <= rear - MERGE_MIN_GAP_M:
                 behind, behind_p = w.ids[slot], p
