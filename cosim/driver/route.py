@@ -87,13 +87,14 @@ class RoutePath:
         xy,
         stop_lines: list[StopLine] = (),
         limits: list[tuple[float, float]] = ((0.0, 13.89),),
-        lanes: dict[str, int] | None = None,
+        edge_lanes: list[tuple[float, float, str, int]] = (),
         lane_changes: list[LaneChange] = (),
     ):
         """``xy``: (N, 2) centre-line points; ``limits``: (arc position where it starts, speed [m/s]);
-        ``lanes``: edge id -> index of the lane the path takes on it (where it leaves the edge);
-        ``lane_changes``: where it moves to another lane, by arc position."""
-        self.lanes = dict(lanes or {})
+        ``edge_lanes``: per edge of the route, in order, (arc positions where the path is on it, edge id,
+        index of the lane it takes there, where it leaves the edge); ``lane_changes``: where it moves to
+        another lane, by arc position."""
+        self.edge_lanes = list(edge_lanes)
         self.lane_changes = list(lane_changes)
         self.lane_change_s = [c.s_start for c in self.lane_changes]
         xy = np.asarray(xy, dtype=np.float64)
@@ -122,7 +123,7 @@ class RoutePath:
         roundabout_edges = {e for r in net.getRoundabouts() for e in r.getEdges()}
         entry_lane = None
         came_by: set[str] = set()  # the path's lanes into the edge it is on (its own, never a foe's)
-        lanes: dict[str, int] = {}
+        edge_lanes: list[tuple[float, float, str, int]] = []
         lane_changes: list[LaneChange] = []
         plan = _LanePlan(net, route)
         for i, eid in enumerate(route):
@@ -132,7 +133,6 @@ class RoutePath:
             lane, conn = plan.choose(i, here, first=entry_lane is None)
             lane = lane or entry_lane or edge.getLane(0)
             conns = [conn] if conn is not None else []
-            lanes.setdefault(eid, lane.getIndex())
             shape = [tuple(p[:2]) for p in lane.getShape()]
             edge_start = line.length
             changes = entry_lane is not None and entry_lane is not lane and bool(line.pts)
@@ -154,6 +154,7 @@ class RoutePath:
                 lane_changes.append(LaneChange(s0, s0 + diagonal, abs(lane.getIndex() - entry_lane.getIndex()), i,
                                                delay, latest, enters, feeders, to_lane))  # fmt: skip
             limits.append((edge_start, lane.getSpeed()))
+            edge_lanes.append((edge_start, line.length, eid, lane.getIndex()))
             if conns:
                 c = conns[0]
                 node = edge.getToNode()
@@ -165,7 +166,13 @@ class RoutePath:
                     line.extend([tuple(p[:2]) for p in via.getShape()])
                     came_by.add(via.getID())
                 entry_lane = c.getToLane()
-        return cls(line.pts, stop_lines, limits, lanes, lane_changes)
+        return cls(line.pts, stop_lines, limits, edge_lanes, lane_changes)
+
+    def lane_on(self, edge_id: str, near_s: float) -> int | None:
+        """The lane the path takes on ``edge_id`` where it passes that edge nearest to arc position ``near_s``
+        (a route may pass an edge twice, in different lanes); None when the route does not take it."""
+        spans = [(max(a - near_s, near_s - b, 0.0), lane) for a, b, eid, lane in self.edge_lanes if eid == edge_id]
+        return min(spans)[1] if spans else None
 
     def project(self, x: float, y: float, near_s: float | None = None) -> tuple[float, float]:
         """(arc position [m], signed lateral offset, left positive [m]) of a point; searches near the last hit

@@ -23,7 +23,7 @@ from cosim.driver.route import LaneChange, RoutePath
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
 from cosim.runconfig import EgoConfig
-from cosim.world import EGO_ID, SumoEvent, World
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 PREVIEW_BEHIND_M = 5.0
 PREVIEW_AHEAD_M = 160.0
@@ -41,6 +41,11 @@ FOE_WAITING_S = 3.0
 # passed too, which it keeps), so the whole route ahead would cost up to 0.3 ms a step.
 SUMO_ROUTE_AHEAD_M = 800.0
 ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is certainly on the road [m]
+# ... and this close it is still on the road its route takes, so SUMO maps the twin onto that route: a
+# driver cutting a corner or drifting within a lane width of the path has not left it (Munich seed 1:
+# 2.1 m off the path in a right turn, the twin mapped freely onto the crossing road hit scv98 there)
+ON_ROUTE_M = 3.5
+LEAD_BESIDE_M = 5.0  # the lead's rear this close to the path's centre line is ahead of the ego, in its lane or the next [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 )
@@ -222,6 +227,7 @@ class EgoController:
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
+        kw.update(self._lead_one_lane_over(w, s_front, kw))
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it (write_back): the cars
         # there see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
         self._new_lane, upcoming = self.path.lane_changes_around(s_front)
@@ -323,6 +329,27 @@ class EgoController:
         k = int(np.argmin(s_rear))
         slot = int(idx[rows[k]])
         return {**kw, "leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
+                "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
+
+    def _lead_one_lane_over(self, w: World, s_front: float, seen: dict) -> dict:
+        """The lead car ahead of the ego one lane over is the participant's leader: they follow the lead,
+        not their lane, so they keep behind it and leave it room to move over (Helsinki seed 1: the lead,
+        blocked from changing into the ego's lane, was passed by the ego closing up in that lane; it was
+        the ego's leader 3 % of the run)."""
+        slot = w.slot_of.get(LEAD_ID)
+        if slot is None:
+            return {}
+        heading = math.radians(float(w.heading_deg[slot]))
+        length = float(w.length_m[slot])
+        rear_x = np.array([w.x_m[slot] - math.sin(heading) * length])
+        rear_y = np.array([w.y_m[slot] - math.cos(heading) * length])
+        rows, s_rear = self.path.vehicles_on_path(rear_x, rear_y, s_front, s_front + PREVIEW_AHEAD_M, LEAD_BESIDE_M)
+        if rows.size == 0:
+            return {}
+        gap = float(s_rear[0]) - s_front
+        if seen.get("leader_present") and seen["leader_gap_m"] <= gap:
+            return {}
+        return {"leader_present": True, "leader_id": LEAD_ID, "leader_gap_m": gap,
                 "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
     def _crossing(self, w, idx: np.ndarray, heading: np.ndarray, cx: float, cy: float, s_front: float,
@@ -507,8 +534,9 @@ class EgoController:
         p = self.percept
         slot = w.slot_of.get(EGO_ID)
         # on its own path and mapped to a lane by SUMO: no need to search the network for the road
-        suspicious = p is None or abs(p.lateral_error_m) > ON_PATH_M or slot is None or w.edge_code[slot] < 0
-        on_route = self._on_sumo_route and not suspicious
+        mapped = p is not None and slot is not None and w.edge_code[slot] >= 0
+        suspicious = not mapped or abs(p.lateral_error_m) > ON_PATH_M
+        on_route = self._on_sumo_route and mapped and abs(p.lateral_error_m) <= ON_ROUTE_M
         if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
             x, y = self._new_lane.onto_new_lane(x, y)
         ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route)

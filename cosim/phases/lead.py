@@ -3,7 +3,7 @@ considerate human leader, so the participant spends the drive following it.
 
 - It starts 20 m ahead of the ego at the first step (``Simulation._place_ego``) and keeps to the ego's
   route, which ``cosim.phases.route`` extends for both as they drive.
-- It drives in the lanes the ego's route path takes (``RoutePath.lanes``), not in SUMO's own choice.
+- It drives in the lanes the ego's route path takes (``RoutePath.lane_on``), not in SUMO's own choice.
 - It drives a little below the limit (``sumo_bridge.LEAD_SPEED_FACTOR``) and never lets the gap along
   the route grow beyond ``wait_beyond_m``: its speed is capped at the ego's plus (wait_beyond_m - gap) /
   ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
@@ -64,6 +64,11 @@ DIVERT_RETRY_S = 5.0  # when no junction offers a way out yet, ask again after t
 # one vehicle is one cut-in: the ego's leader may flip between it and the lead while it stays between them
 # (beside the ego in the lane the ego moves into, then ahead of it) [s]
 CUT_IN_ONCE_S = 60.0
+STAND_MPS = 0.5  # the lead stands below this speed [m/s]
+# the lead standing this long short of the lane its way goes on noses in when the car that would follow it
+# there is the ego or drives slower than LANE_FORCE_FOLLOWER_MPS (a queue) [s]
+LANE_FORCE_AFTER_S = 5.0
+LANE_FORCE_FOLLOWER_MPS = 2.0
 
 
 def _closing_cap(v_behind: float, gap_m: float, limit_m: float) -> float:
@@ -125,6 +130,8 @@ class LeadVehicle:
         self._between: tuple[str, float] | None = None  # (vehicle between the lead and the ego, since when)
         self._divert_asked: dict[str, float] = {}  # vehicle -> when it was last asked to turn off
         self._cut_in_seen: dict[str, float] = {}  # vehicle -> when its cut-in was counted
+        self._stuck_since: float | None = None  # the lead stands in another lane than its way's, since when
+        self._forcing = False  # ... and noses into that lane
 
     def step(self, w: World) -> None:
         lead, ego = w.slot_of.get(LEAD_ID), w.slot_of.get(EGO_ID)
@@ -161,9 +168,34 @@ class LeadVehicle:
         code = int(w.edge_code[lead])
         if path is None or code < 0:
             return
-        lane = path.lanes.get(w.edge_names[code])
-        if lane is not None:
-            self.bridge.keep_lane(LEAD_ID, lane, LANE_HOLD_S)
+        near_s = self._lead_s if self._lead_s is not None else self.ego.s_front_m
+        lane = path.lane_on(w.edge_names[code], near_s or 0.0)
+        if lane is None:
+            return
+        self.bridge.keep_lane(LEAD_ID, lane, LANE_HOLD_S, force=self._nose_in(w, lead, lane))
+
+    def _nose_in(self, w: World, lead: int, lane: int) -> bool:
+        """Whether the lead, standing short of the lane its way goes on, should move over into a gap SUMO
+        finds too small: after LANE_FORCE_AFTER_S when the car that would follow it there crawls (a queue,
+        which gives no gap by itself) or is the ego (its driver follows the lead). At the end of a lane
+        SUMO's own lane change waited 135 s beside a queue that streamed at every green (Munich seed 1)."""
+        here = int(w.lane_index[lead])
+        if here == lane or float(w.speed_mps[lead]) > STAND_MPS:
+            self._stuck_since, self._forcing = None, False
+            return False
+        t = w.t_s
+        if self._stuck_since is None:
+            self._stuck_since = t
+        if t - self._stuck_since < LANE_FORCE_AFTER_S:
+            return False
+        behind = self.bridge.follower_beside(LEAD_ID, left=lane > here)
+        if behind is not None and behind[0] != EGO_ID and behind[2] > LANE_FORCE_FOLLOWER_MPS:
+            return False
+        if not self._forcing:
+            ahead_of = behind[0] if behind is not None else "nobody"
+            self.emit(SumoEvent("lead_nosed_in", LEAD_ID, f"into lane {lane}, ahead of {ahead_of}"))
+        self._forcing = True
+        return True
 
     def _car_between(self, w: World) -> tuple[float, float] | None:
         """(speed [m/s], gap [m]) of the car right behind the lead while a car is between it and the ego."""
@@ -191,6 +223,9 @@ class LeadVehicle:
         if not tls or tls[2] > LIGHT_DECIDE_M:
             return None
         tls_id, link, dist, state = tls
+        if not self.gap_m > 0:  # the ego is beside or ahead of the lead: nothing to wait for
+            self._light = None
+            return None
         green = state in "Gg"
         if (tls_id, link, green) != self._light:  # a new light, or this one turned green / ended its green
             self._light = (tls_id, link, green)

@@ -112,6 +112,7 @@ class SumoBridge:
         self._colliding: set[tuple[str, str]] = set()
         self._removed: list[str] = []  # removed by cosim this step
         self._tls_logics: dict[tuple[str, str], list[tuple[float, str]] | None] = {}
+        self._lc_mode_before: dict[str, int] = {}  # vehicle -> its lane-change mode while keep_lane forces
 
     def close(self) -> None:
         if self.open:
@@ -319,8 +320,14 @@ class SumoBridge:
                 self._pose_off_road = math.hypot(rx - x_m, ry - y_m) > MATCH_THRESHOLD_M
                 if self._pose_off_road:
                     return None
-            veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=1 if on_route else 2,
-                         matchThreshold=MATCH_THRESHOLD_M)  # fmt: skip
+            try:
+                veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=1 if on_route else 2,
+                             matchThreshold=MATCH_THRESHOLD_M)  # fmt: skip
+            except Exception:  # libsumo.TraCIException: no lane of the route that near; any lane will do
+                if not on_route:
+                    raise
+                veh.moveToXY(EGO_ID, edge_hint, lane_hint, x_m, y_m, heading_deg, keepRoute=2,
+                             matchThreshold=MATCH_THRESHOLD_M)  # fmt: skip
             veh.setPreviousSpeed(EGO_ID, max(0.0, speed_mps))
         except Exception as exc:  # libsumo.TraCIException: the pose could not be used at all
             return SumoEvent("ego_write_failed", EGO_ID, str(exc).splitlines()[0][:200])
@@ -500,10 +507,26 @@ class SumoBridge:
         links = veh.getNextLinks(vid)  # (lane, hasPrio, isOpen, hasFoe, via, state, direction, length)
         return bool(links) and not links[0][2]
 
-    def keep_lane(self, vid: str, lane_index: int, duration_s: float) -> None:
-        """Have SUMO move the vehicle to, and hold it in, lane ``lane_index`` of its edge for ``duration_s``
-        (its lane-change model still waits for a safe gap)."""
-        self._sumo.vehicle.changeLane(vid, lane_index, duration_s)
+    def keep_lane(self, vid: str, lane_index: int, duration_s: float, force: bool = False) -> None:
+        """Have SUMO move the vehicle to, and hold it in, lane ``lane_index`` of its edge for ``duration_s``.
+        Its lane-change model waits for a safe gap, unless ``force``: then it only avoids an immediate
+        collision (laneChangeMode bits 8-9 = 1 instead of the default 2, kept until a call without force)."""
+        veh = self._sumo.vehicle
+        if force and vid not in self._lc_mode_before:
+            self._lc_mode_before[vid] = veh.getLaneChangeMode(vid)
+            veh.setLaneChangeMode(vid, self._lc_mode_before[vid] & ~(3 << 8) | (1 << 8))
+        elif not force and vid in self._lc_mode_before:
+            veh.setLaneChangeMode(vid, self._lc_mode_before.pop(vid))
+        veh.changeLane(vid, lane_index, duration_s)
+
+    def follower_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None:
+        """(id, gap [m], speed [m/s]) of the nearest vehicle behind ``vid`` in the lane to its left (right)."""
+        veh = self._sumo.vehicle
+        found = (veh.getLeftFollowers if left else veh.getRightFollowers)(vid)
+        if not found:
+            return None
+        fid, gap = min(found, key=lambda f: f[1])
+        return fid, gap, veh.getSpeed(fid)
 
     def next_link(self, vid: str) -> tuple[str, float, str] | None:
         """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None

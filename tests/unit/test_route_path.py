@@ -16,6 +16,23 @@ def path_through(points: list[tuple[float, float]]) -> RoutePath:
     return RoutePath(points)
 
 
+def _lanes(path: RoutePath) -> list[tuple[str, int]]:
+    return [(eid, lane) for _, _, eid, lane in path.edge_lanes]
+
+
+def test_a_route_that_passes_an_edge_twice_knows_its_lane_on_each_pass():
+    """A route round a block comes back onto an edge it started on, leaving it by another lane: the lane is
+    the one of the pass nearest the asking position (keyed by edge alone, the lead was held in the first
+    pass's lane 0 at the end of the second, where its way went on from lane 1: Munich seed 1, 135 s)."""
+    path = RoutePath([(0.0, 0.0), (0.0, 300.0)], edge_lanes=[(0.0, 100.0, "b", 0), (100.0, 200.0, "c", 2),
+                                                            (200.0, 300.0, "b", 1)])  # fmt: skip
+    assert path.lane_on("b", 20.0) == 0
+    assert path.lane_on("b", 290.0) == 1
+    assert path.lane_on("b", 180.0) == 1  # about to come onto it again
+    assert path.lane_on("c", 0.0) == 2
+    assert path.lane_on("x", 0.0) is None
+
+
 def test_a_later_pass_close_by_does_not_capture_the_projection():
     """A route that comes back 1.5 m beside itself a few points later (a block round, then the parallel
     road): the car 1 m off its current pass stays on it, though the later pass is nearer."""
@@ -49,7 +66,7 @@ def test_the_path_keeps_the_lane_it_arrives_on_when_that_lane_leads_on():
     path = RoutePath.from_network(Net([a, b, c]), ["a", "b", "c"])
     on_b = path.xy[(path.xy[:, 0] > 100) & (path.xy[:, 0] < 200)]
     assert np.allclose(on_b[:, 1], -6.4)
-    assert path.lanes == {"a": 2, "b": 2, "c": 2}  # the lead is told these
+    assert _lanes(path) == [("a", 2), ("b", 2), ("c", 2)]  # the lead is told these
 
 
 def test_the_path_changes_to_the_lane_that_leads_on():
@@ -70,7 +87,7 @@ def test_the_path_changes_lanes_on_the_long_road_before_a_short_one_it_must_leav
     a.out[b] = [Conn(a.lanes[i], b.lanes[i]) for i in range(3)] + [Conn(a.lanes[2], b.lanes[3])]
     b.out[c] = [Conn(b.lanes[0], c.lanes[0])]
     path = RoutePath.from_network(Net([z, a, b, c]), ["z", "a", "b", "c"])
-    assert path.lanes == {"z": 2, "a": 0, "b": 0, "c": 0}
+    assert _lanes(path) == [("z", 2), ("a", 0), ("b", 0), ("c", 0)]
     on_b = path.xy[(path.xy[:, 0] >= 200) & (path.xy[:, 0] <= 225)]
     assert np.allclose(on_b[:, 1], 0.0)  # no lane change on the short edge
 

@@ -11,7 +11,7 @@ import pytest
 
 from cosim.driver.route import RoutePath
 from cosim.phases.ego import priority_gap_s
-from cosim.phases.lead import LeadVehicle
+from cosim.phases.lead import LANE_FORCE_AFTER_S, LeadVehicle
 from cosim.world import EGO_ID, LEAD_ID, World
 
 
@@ -26,7 +26,9 @@ class FakeBridge:
         self.foes: list[tuple[str, float, float, float, bool]] = []
         self.diverted: list[tuple[str, set]] = []
         self.exit_edge: str | None = "side"
-        self.lanes: list[int] = []  # lanes the lead was told to keep to
+        self.lanes: list[int] = []  # lanes the lead was told to keep to ...
+        self.forced: list[bool] = []  # ... and whether into a gap SUMO finds too small
+        self.beside: tuple[str, float, float] | None = None  # the car behind the lead in the lane it moves to
 
     def cap_speed(self, vid, speed):
         assert vid == LEAD_ID
@@ -58,9 +60,13 @@ class FakeBridge:
         self.diverted.append((vid, keep_off))
         return self.exit_edge
 
-    def keep_lane(self, vid, lane_index, duration_s):
+    def keep_lane(self, vid, lane_index, duration_s, force=False):
         assert vid == LEAD_ID
         self.lanes.append(lane_index)
+        self.forced.append(force)
+
+    def follower_beside(self, vid, left):
+        return self.beside
 
 
 class FakeEgo:
@@ -287,7 +293,7 @@ def test_the_lead_keeps_to_the_lane_the_egos_path_takes():
     sim = fake_sim(gap_m=20.0, ego_speed=8.0)
     w = sim.world
     sim.ego.s_front_m = 0.0
-    sim.ego.path = RoutePath([(0.0, -10.0), (0.0, 200.0)], lanes={"b": 1})
+    sim.ego.path = RoutePath([(0.0, -10.0), (0.0, 200.0)], edge_lanes=[(0.0, 210.0, "b", 1)])
     lead = _lead(sim)
     w.edge_code[w.slot_of[LEAD_ID]] = w.intern_edge("a")  # an edge the path does not name: left alone
     lead.step(w)
@@ -295,3 +301,52 @@ def test_the_lead_keeps_to_the_lane_the_egos_path_takes():
     w.edge_code[w.slot_of[LEAD_ID]] = w.intern_edge("b")
     lead.step(w)
     assert sim.bridge.lanes == [1]
+
+
+def _stuck_in_lane_0(beside):
+    """The lead stands in lane 0 of edge b where the ego's path takes lane 1; ``beside``: the car behind it
+    there (id, gap, speed)."""
+    sim = fake_sim(gap_m=20.0, ego_speed=0.0)
+    w = sim.world
+    sim.ego.s_front_m = 0.0
+    sim.ego.path = RoutePath([(0.0, -10.0), (0.0, 200.0)], edge_lanes=[(0.0, 210.0, "b", 1)])
+    sim.bridge.beside = beside
+    lead = _lead(sim)
+    w.edge_code[w.slot_of[LEAD_ID]] = w.intern_edge("b")
+    return sim, lead
+
+
+@pytest.mark.parametrize("beside", [None, ("scv1", 1.5, 0.0), (EGO_ID, 2.0, 6.0)])
+def test_the_lead_standing_in_the_wrong_lane_noses_into_a_queue_or_in_front_of_the_ego(beside):
+    """Standing short of the lane its way goes on, the lead waits LANE_FORCE_AFTER_S for SUMO's lane change,
+    then moves over into a gap too small for SUMO: beside a standing queue, or in front of the ego, whose
+    driver follows it. It says so once."""
+    sim, lead = _stuck_in_lane_0(beside)
+    for k in range(int(LANE_FORCE_AFTER_S / 0.1) + 3):
+        sim.world.t_s = k * 0.1
+        lead.step(sim.world)
+    assert sim.bridge.lanes[-1] == 1
+    assert not sim.bridge.forced[0] and sim.bridge.forced[-1]
+    assert [e.kind for e in sim.events] == ["lead_nosed_in"]
+
+
+def test_the_lead_does_not_nose_in_front_of_a_moving_car():
+    sim, lead = _stuck_in_lane_0(("scv1", 3.0, 8.0))
+    for k in range(int(LANE_FORCE_AFTER_S / 0.1) * 2):
+        sim.world.t_s = k * 0.1
+        lead.step(sim.world)
+    assert not any(sim.bridge.forced) and sim.events == []
+
+
+def test_the_lead_does_not_hold_at_a_green_for_an_ego_that_has_passed_it():
+    """The ego overtook the lead in another lane (the lead had stopped for it at a green): waiting there
+    for it would only hold the lead (Munich seed 1, the lead stood through the green)."""
+    sim = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 40.0, "G"), 3.0
+    sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -10.0), (0.0, 300.0)]), 10.0  # the ego's front at y=0
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting and lead.gap_m == pytest.approx(30.0)
+    sim.ego.s_front_m = 70.0  # now 25 m ahead of the lead's front
+    lead.step(sim.world)
+    assert not lead.waiting and sim.bridge.caps[-1] is None
