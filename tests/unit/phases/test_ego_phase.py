@@ -425,3 +425,44 @@ def test_moving_over_the_ego_follows_the_car_ahead_in_the_lane_it_moves_into():
     _in_target_lane(d, "x1", 222.0, 1.0)
     d.step()
     assert not d.ego.percept.leader_present
+
+
+def _standing_one_lane_over(d: Drive, vid: str, y_m: float) -> int:
+    w = d.world
+    car = w.add(vid)
+    w.x_m[car], w.y_m[car], w.heading_deg[car], w.speed_mps[car] = 3.2, y_m, 0.0, 0.0
+    w.length_m[car], w.width_m[car], w.edge_code[car] = 4.5, 1.8, w.intern_edge("a")
+    return car
+
+
+def test_the_participant_keeps_behind_the_lead_standing_one_lane_over_and_drives_past_other_cars():
+    """The lead, blocked from moving into the ego's lane, stands one lane over 60 m ahead: the participant
+    follows the lead, not the lane, so it stops behind it (leaving it room to move over) instead of passing
+    it. A stranger's car standing there is passed."""
+    for vid in ("lead", "scv1"):
+        d = Drive()
+        d.place()
+        _standing_one_lane_over(d, vid, 60.0)
+        for _ in range(300):  # 30 s
+            d.step()
+        front = d.car.y + 0.5 * d.cfg.car.length_m
+        if vid == "lead":
+            assert d.ego.percept.leader_id == "lead" and d.car.v < 0.1
+            assert 60.0 - 4.5 - 8.0 < front < 60.0 - 4.5  # behind the lead's rear, close up
+        else:
+            assert d.ego.percept.leader_id is None and front > 100.0
+
+
+def test_a_cut_corner_keeps_the_twin_on_its_route_and_only_leaving_the_road_lets_sumo_map_it_freely():
+    """Up to ON_ROUTE_M off the path's centre line (a right turn cut 2.1 m wide) SUMO maps the twin onto
+    the route it holds; farther off, onto any lane (the driver may have left the route)."""
+    from cosim.phases.ego import ON_ROUTE_M
+
+    d = Drive()
+    d.place()
+    d.step()
+    for offset, on_route in ((2.1, True), (ON_ROUTE_M + 0.5, False)):
+        d.car.x = -offset  # the path runs due north along x = 0
+        d.step()
+        assert abs(d.ego.percept.lateral_error_m) == pytest.approx(offset, abs=0.3)
+        assert d.bridge.writes[-1]["on_route"] is on_route and d.bridge.writes[-1]["verify"]
