@@ -171,7 +171,9 @@ class RoutePath:
     def lane_on(self, edge_id: str, near_s: float) -> int | None:
         """The lane the path takes on ``edge_id`` where it passes that edge nearest to arc position ``near_s``
         (a route may pass an edge twice, in different lanes); None when the route does not take it."""
-        spans = [(max(a - near_s, near_s - b, 0.0), lane) for a, b, eid, lane in self.edge_lanes if eid == edge_id]
+        spans = [
+            (max(a - near_s, near_s - b, 0.0), lane) for a, b, eid, lane in self.edge_lanes if eid == edge_id
+        ]
         return min(spans)[1] if spans else None
 
     def project(self, x: float, y: float, near_s: float | None = None) -> tuple[float, float]:

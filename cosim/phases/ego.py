@@ -343,7 +343,9 @@ class EgoController:
         length = float(w.length_m[slot])
         rear_x = np.array([w.x_m[slot] - math.sin(heading) * length])
         rear_y = np.array([w.y_m[slot] - math.cos(heading) * length])
-        rows, s_rear = self.path.vehicles_on_path(rear_x, rear_y, s_front, s_front + PREVIEW_AHEAD_M, LEAD_BESIDE_M)
+        rows, s_rear = self.path.vehicles_on_path(
+            rear_x, rear_y, s_front, s_front + PREVIEW_AHEAD_M, LEAD_BESIDE_M
+        )
         if rows.size == 0:
             return {}
         gap = float(s_rear[0]) - s_front

@@ -57,7 +57,9 @@ def _backend(use_traci: bool):
     return libsumo
 
 
-def _footprint(x_m: float, y_m: float, heading_deg: float, length_m: float, width_m: float) -> shapely.Polygon:
+def _footprint(
+    x_m: float, y_m: float, heading_deg: float, length_m: float, width_m: float
+) -> shapely.Polygon:
     """A vehicle's body: the rectangle behind its front bumper's centre (x, y), SUMO heading (0 = north)."""
     ux, uy = math.sin(math.radians(heading_deg)), math.cos(math.radians(heading_deg))
     half_x, half_y = uy * 0.5 * width_m, -ux * 0.5 * width_m  # to its right
@@ -179,7 +181,9 @@ class SumoBridge:
         veh = self._sumo.vehicle
         x, y = veh.getPosition(other)
         ego = _footprint(*self._ego_pose, veh.getLength(self.ego_id), veh.getWidth(self.ego_id))
-        return ego.intersects(_footprint(x, y, veh.getAngle(other), veh.getLength(other), veh.getWidth(other)))
+        return ego.intersects(
+            _footprint(x, y, veh.getAngle(other), veh.getLength(other), veh.getWidth(other))
+        )
 
     def _read(self, world: World) -> None:
         """All vehicles' pose, speed, acceleration and lane with one pass of plain getters per quantity.

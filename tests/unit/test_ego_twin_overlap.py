@@ -34,7 +34,9 @@ def test_an_overlap_of_the_twin_alone_is_not_a_collision_of_the_car():
     neighbouring internal lane on top of it."""
     waiting = (1050.7, 500.4, 243.0)
     assert not _bridge((1048.7, 497.3, 353.0), waiting)._bodies_touch(EGO_ID, "scv1")
-    assert _bridge((1050.6, 500.2, 20.0), waiting)._bodies_touch("scv1", EGO_ID)  # the car's nose in its front
+    assert _bridge((1050.6, 500.2, 20.0), waiting)._bodies_touch(
+        "scv1", EGO_ID
+    )  # the car's nose in its front
 
 
 def test_collisions_without_the_ego_are_sumos_own():
