@@ -265,10 +265,13 @@ class LeadVehicle:
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 
     def _log_cut_in(self, t: float) -> None:
-        """Another vehicle has become the ego's leader while the lead is still ahead of it."""
+        """Another vehicle has become the ego's leader while the lead is still ahead of it: in place of the
+        lead, or of a car that had come between them (a second car in ahead of the first is a cut-in too:
+        counting only changes from the lead, four cars taking a lane-change gap counted as one)."""
         percept = getattr(self.ego, "percept", None)
         leader = percept.leader_id if percept is not None and percept.leader_present else None
-        if (self._ego_leader == LEAD_ID and leader not in (None, LEAD_ID) and self.gap_m > 0
+        was_between = self._ego_leader == LEAD_ID or self._ego_leader in self._cut_in_seen
+        if (was_between and leader not in (None, LEAD_ID, self._ego_leader) and self.gap_m > 0
                 and t - self._cut_in_seen.get(leader, -math.inf) > CUT_IN_ONCE_S):  # fmt: skip
             self._cut_in_seen[leader] = t
             self.cut_ins += 1

@@ -190,6 +190,19 @@ def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
     assert lead.cut_ins == 2 and [e.vehicle for e in sim.events] == ["scv7", "scv8"]  # scv7 counted once
 
 
+def test_cars_that_come_in_one_ahead_of_the_other_are_each_a_cut_in():
+    """While the ego waits to change lanes, the stream fills the gap behind the lead: scv1, then scv2 in
+    front of it, ... each came between the lead and the ego. A car the ego merely catches up with in the
+    meantime (the lead out of sight, no car between) is not."""
+    sim = fake_sim(gap_m=40.0, ego_speed=2.0)
+    lead = _lead(sim)
+    for k, seen in enumerate([LEAD_ID, "scv1", "scv2", "scv3", "scv2", None, "scv9"]):
+        sim.world.t_s = float(k)
+        sim.ego.sees(seen)
+        lead.step(sim.world)
+    assert [e.vehicle for e in sim.events if e.kind == "lead_cut_in"] == ["scv1", "scv2", "scv3"]
+
+
 def test_a_vehicle_that_stays_between_the_lead_and_the_ego_is_sent_off_the_leads_way():
     sim = fake_sim(gap_m=20.0, ego_speed=8.0)
     lead = _lead(sim)
