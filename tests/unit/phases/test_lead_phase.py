@@ -203,6 +203,22 @@ def test_cars_that_come_in_one_ahead_of_the_other_are_each_a_cut_in():
     assert [e.vehicle for e in sim.events if e.kind == "lead_cut_in"] == ["scv1", "scv2", "scv3"]
 
 
+def test_a_car_crossing_the_egos_way_is_not_a_cut_in():
+    """Waiting at a stop sign, the ego sees each car crossing the junction ahead as its leader for a moment
+    (Krems seed 2: 16 of them); they are not between the lead and the ego."""
+    sim = fake_sim(gap_m=40.0, ego_speed=0.0)
+    w = sim.world
+    for k, heading in enumerate((90.0, 270.0, 30.0)):  # two crossing, one merging into the ego's way
+        car = w.add(f"x{k}")
+        w.heading_deg[car] = heading
+    lead = _lead(sim)
+    for k, seen in enumerate([LEAD_ID, "x0", LEAD_ID, "x1", LEAD_ID, "x2"]):
+        w.t_s = float(k)
+        sim.ego.sees(seen)
+        lead.step(w)
+    assert [e.vehicle for e in sim.events if e.kind == "lead_cut_in"] == ["x2"]
+
+
 def test_a_vehicle_that_stays_between_the_lead_and_the_ego_is_sent_off_the_leads_way():
     sim = fake_sim(gap_m=20.0, ego_speed=8.0)
     lead = _lead(sim)
