@@ -101,12 +101,27 @@ def test_speed_limit_implied_by_road_type(tmp_path):
     s.node("a", -400, 0)
     s.node("m", 0, 0)
     s.node("b", 400, 0)
-    s.way(["a", "m"], highway="primary")  # no maxspeed: the road type's default limit
-    s.way(["m", "b"], highway="residential")
+    s.way(["a", "m"], highway="trunk")  # no maxspeed: the road type's default limit (100 km/h, an expressway)
+    s.way(["m", "b"], highway="residential")  # 50 km/h
     _, _, signs = build(s, tmp_path)
     limit_signs = [sg for sg in signs if sg.kind == "speed_limit"]
     assert len(limit_signs) == 2
     assert {sg.source for sg in limit_signs} == {"road_type"}
+
+
+def test_an_untagged_town_main_road_has_the_urban_limit(tmp_path):
+    """Primary, secondary and tertiary roads without a maxspeed tag get the urban legal default, 50 km/h (as
+    SUMO's osmNetconvertUrbanDe typemap), not SUMO's rural 100 km/h; a tag still wins."""
+    s = OsmSketch()
+    for name, x in (("a", -400), ("m", 0), ("b", 400), ("c", 800)):
+        s.node(name, x, 0)
+    s.way(["a", "m"], highway="primary")
+    s.way(["m", "b"], highway="tertiary")
+    s.way(["b", "c"], highway="secondary", maxspeed="70")
+    _, net, _ = build(s, tmp_path)
+    speeds = {e.getType().removeprefix("highway."): round(e.getSpeed() * 3.6)
+              for e in net.getEdges() if e.getType().startswith("highway.")}  # fmt: skip
+    assert speeds == {"primary": 50, "tertiary": 50, "secondary": 70}
 
 
 def test_one_way_sign_where_a_one_way_road_leaves_a_two_way_junction(tmp_path):
