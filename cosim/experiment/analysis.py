@@ -138,9 +138,10 @@ def plot_timegap(cols: dict[str, np.ndarray], path: Path, title: str) -> None:
     ax.set_xlabel("time since start of the drive [s]")
     ax.set_ylabel("time gap to the leader [s]")
     ax.set_title(title)
-    ax.legend(loc="upper right", fontsize=8, ncols=2)
+    # below the axes: inside, it hid the label of the last phase
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), fontsize=8, ncols=4, frameon=False)
     fig.tight_layout()
-    fig.savefig(path)
+    fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
 
 
