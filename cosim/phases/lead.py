@@ -3,7 +3,8 @@ considerate human leader, so the participant spends the drive following it.
 
 - It starts 20 m ahead of the ego at the first step (``Simulation._place_ego``) and keeps to the ego's
   route, which ``cosim.phases.route`` extends for both as they drive.
-- It drives in the lanes the ego's route path takes (``RoutePath.lane_on``), not in SUMO's own choice.
+- It drives in the lanes the ego's route path takes (``RoutePath.lane_on``: on the pass of the edge nearest
+  it), not in SUMO's own choice; standing short of that lane beside a queue or the ego, it noses in.
 - It drives a little below the limit (``sumo_bridge.LEAD_SPEED_FACTOR``) and never lets the gap along
   the route grow beyond ``wait_beyond_m``: its speed is capped at the ego's plus (wait_beyond_m - gap) /
   ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
