@@ -77,10 +77,13 @@ MERGE_LATE_DECEL_MPS2 = 4.5  # stopping short would need harder braking than thi
 # as the edge leaves room. (Slowing first to let the cars pass, putting it off only when still held up below
 # 2 m/s, was tried: in the experiment the lead drove away more often and two ego collisions came back.)
 MERGE_PUT_OFF_WITHIN_M, MERGE_PUT_OFF_M = 15.0, 20.0
-# Waiting at the last point (a queue alongside closes every gap): once impatient, the ego asks the car that
-# would follow it to hang back (SUMO's gap control, TraCI openGap), as a driver lets a blinking car in: a
-# bumper gap for the ego's length and both minGaps, for MERGE_ASK_EVERY_S, asked again after that
-MERGE_ASK_GAP_M, MERGE_ASK_EVERY_S = 12.0, 10.0
+# Waiting at the last point (a queue alongside closes every gap): once impatient, the ego is let in, as a
+# driver stops for a blinking car: the nearest car in the new lane that can still stop, braking at
+# MERGE_LET_IN_DECEL_MPS2, MERGE_MIN_GAP_M behind the ego's rear stops (held at speed 0) until the ego
+# has begun to move over, for MERGE_LET_IN_S at most, then another is asked. (SUMO's gap control, TraCI
+# openGap, was asked before: it widens a car's gap to its own leader, which in a moving queue passes the
+# ego as well, so the gap never opened beside it: Munich seed 2, Helsinki seed 3.)
+MERGE_LET_IN_DECEL_MPS2, MERGE_LET_IN_S = 3.0, 10.0
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -106,7 +109,7 @@ class EgoBridge(FoesBridge, Protocol):
 
     def set_ego_route(self, edges: list[str]) -> SumoEvent | None: ...
 
-    def open_gap(self, vid: str, space_m: float, duration_s: float, max_decel_mps2: float) -> None: ...
+    def cap_speed(self, vid: str, speed_mps: float | None) -> None: ...
 
     def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, *,
                   verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
@@ -189,8 +192,10 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
-        # waiting for a gap: (route index of the lane change's edge, since [s], last asked for a gap [s])
-        self._merge_held: tuple[int, float, float] | None = None
+        # waiting for a gap: (route index of the lane change's edge, since [s])
+        self._merge_held: tuple[int, float] | None = None
+        # the car that stops to let the ego in: (its id, since [s], where the ego begins to enter the lane)
+        self._let_in: tuple[str, float, float] | None = None
 
     def _start(self, w, slot: int) -> None:
         cx, cy, yaw = frames.sumo_to_mujoco(
@@ -226,6 +231,7 @@ class EgoController:
             self._rebuild_path()
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
+        self._end_let_in(w, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
         kw.update(self._lead_one_lane_over(w, s_front, kw))
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it (write_back): the cars
@@ -446,26 +452,36 @@ class EgoController:
             return {}  # committed
         held = self._merge_held
         if held is None or held[0] != change.edge_index:
-            held = self._merge_held = (change.edge_index, w.t_s, -math.inf)
+            held = self._merge_held = (change.edge_index, w.t_s)
         if (
-            behind is not None
+            self._let_in is None
+            and behind is not None
             and v < 0.5
             and change.delay_m >= change.max_delay_m  # the last point: no putting it off any more
             and w.t_s - held[1] >= MERGE_PATIENCE_S
-            and w.t_s - held[2] >= MERGE_ASK_EVERY_S
         ):
-            # waiting at the last point beside a queue: the car that would follow the ego hangs back
-            self.bridge.open_gap(behind, MERGE_ASK_GAP_M, MERGE_ASK_EVERY_S, MERGE_DECEL_MPS2)
-            why = f"hangs back for the ego to change into {change.to_lane_id}"
-            self.emit(SumoEvent("merge_gap_asked", behind, why))
-            self._merge_held = (held[0], held[1], w.t_s)
+            # waiting at the last point beside a queue: the car that would follow the ego stops for it
+            self.bridge.cap_speed(behind, 0.0)
+            self._let_in = (behind, w.t_s, enter_s)
+            self.emit(SumoEvent("merge_let_in", behind, f"stops to let the ego into {change.to_lane_id}"))
         return {"merge_dist_m": d}
+
+    def _end_let_in(self, w: World, s_front: float) -> None:
+        """The car that stopped to let the ego in drives on once the ego has begun to move over (it follows
+        the ego then), after MERGE_LET_IN_S, or when it has left the simulation."""
+        if self._let_in is None:
+            return
+        vid, since, enter_s = self._let_in
+        if s_front >= enter_s or w.t_s - since >= MERGE_LET_IN_S or vid not in w.slot_of:
+            if vid in w.slot_of:
+                self.bridge.cap_speed(vid, None)
+            self._let_in = None
 
     def _no_gap(self, w: World, near: np.ndarray, s_front: float, change: LaneChange, enter_s: float,
                 v: float) -> tuple[bool, str | None]:  # fmt: skip
         """Whether a vehicle in (or coming into) the lanes ``change`` enters leaves the ego no gap when its
-        front reaches ``enter_s``; and the nearest car on those lanes behind where the ego's rear would be
-        (its follower after the change)."""
+        front reaches ``enter_s``; and the nearest car on those lanes that can still stop MERGE_MIN_GAP_M
+        behind where the ego's rear would be (the one to let it in)."""
         held = self._merge_held
         impatient = held is not None and held[0] == change.edge_index and w.t_s - held[1] >= MERGE_PATIENCE_S
         tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
@@ -476,7 +492,13 @@ class EgoController:
         blocked, behind, behind_p = False, None, -math.inf
         for slot, lane, p in self._watched(w, near, change, feeders=True):
             vf = float(w.speed_mps[slot])
-            if lane in change.enters and behind_p < p <= rear - MERGE_MIN_GAP_M:
+            stop_p = p + vf * self.step_s + vf * vf / (2.0 * MERGE_LET_IN_DECEL_MPS2)
+            if (
+                lane in change.enters
+                and behind_p < p
+                and stop_p <= rear - MERGE_MIN_GAP_M
+                and w.ids[slot] != LEAD_ID
+            ):
                 behind, behind_p = w.ids[slot], p
             if p - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:
                 continue  # clear ahead already (a car crawling in a queue may stop again: not as predicted)

@@ -451,12 +451,6 @@ class SumoBridge:
         it back to SUMO's own driving."""
         self._sumo.vehicle.setSpeed(vid, -1.0 if speed_mps is None else max(0.0, speed_mps))
 
-    def open_gap(self, vid: str, space_m: float, duration_s: float, max_decel_mps2: float) -> None:
-        """Let ``vid`` hang back to a bumper gap of ``space_m`` behind its leader for ``duration_s`` (SUMO's
-        gap control, TraCI openGap: its own time headway, the gap reached within a second, braking at most
-        ``max_decel_mps2``)."""
-        self._sumo.vehicle.openGap(vid, -1.0, space_m, duration_s, 1.0, max_decel_mps2)
-
     def lane_speed_limit(self, vid: str) -> float:
         """The speed the vehicle may drive on its lane (limit x its speed factor) [m/s]."""
         return self._sumo.vehicle.getAllowedSpeed(vid)
