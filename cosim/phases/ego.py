@@ -84,6 +84,10 @@ MERGE_PUT_OFF_WITHIN_M, MERGE_PUT_OFF_M = 15.0, 20.0
 # openGap, was asked before: it widens a car's gap to its own leader, which in a moving queue passes the
 # ego as well, so the gap never opened beside it: Munich seed 2, Helsinki seed 3.)
 MERGE_LET_IN_DECEL_MPS2, MERGE_LET_IN_S = 3.0, 10.0
+# only a car behind the ego stopping at the last point is let in: held short of it by a car ahead, the point
+# where it would be let in lies beside the queue ahead of it (Munich seed 1: the car held stood in front of
+# the lead, 15 m ahead of the ego, and blocked its lane for 170 s)
+MERGE_AT_POINT_M = 3.0
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -146,7 +150,7 @@ def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: floa
     return gap
 
 
-def _arrival(v: float, v_top: float, dist_m: float) -> tuple[float, float]:
+def pull_away_arrival(v: float, v_top: float, dist_m: float) -> tuple[float, float]:
     """(time [s], speed [m/s]) of the ego ``dist_m`` on, speeding up from ``v`` at EGO_PULL_AWAY_MPS2 to at
     most ``v_top``."""
     a = EGO_PULL_AWAY_MPS2
@@ -458,6 +462,7 @@ class EgoController:
             and behind is not None
             and v < 0.5
             and change.delay_m >= change.max_delay_m  # the last point: no putting it off any more
+            and d < MERGE_AT_POINT_M  # standing there (not held short of it by a car ahead)
             and w.t_s - held[1] >= MERGE_PATIENCE_S
         ):
             # waiting at the last point beside a queue: the car that would follow the ego stops for it
@@ -486,7 +491,7 @@ class EgoController:
         impatient = held is not None and held[0] == change.edge_index and w.t_s - held[1] >= MERGE_PATIENCE_S
         tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
         decel = MERGE_IMPATIENT_DECEL_MPS2 if impatient else MERGE_DECEL_MPS2
-        t_e, v_e = _arrival(v, max(v, self.path.speed_limit(s_front)[0]), enter_s - s_front)
+        t_e, v_e = pull_away_arrival(v, max(v, self.path.speed_limit(s_front)[0]), enter_s - s_front)
         front = enter_s - change.s_start + change.delay_m  # the ego's front then, from the edge's start
         rear = front - self.car.params.length_m
         blocked, behind, behind_p = False, None, -math.inf

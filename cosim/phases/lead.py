@@ -38,7 +38,7 @@ from typing import Protocol
 from cosim.driver import Percept
 from cosim.driver.gap_acceptance import critical_gap_s, follow_up_s, movement_of
 from cosim.driver.route import RoutePath
-from cosim.phases.ego import FoesBridge, priority_gap_s
+from cosim.phases.ego import FoesBridge, priority_gap_s, pull_away_arrival
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this time [s]
@@ -46,6 +46,11 @@ YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
 EGO_CLOSE_M = 15.0  # ... until the ego is at most this far behind it [m]
 LIGHT_DECIDE_M = 70.0  # the lead decides whether to stop for the ego's sake this far before a light [m]
 LIGHT_MARGIN_S = 1.5  # the ego must reach the stop line this long before the green ends [s]
+# ... at its present speed; within EGO_CLOSE_M behind the lead (queued behind it, at most one car between)
+# it goes when the lead goes: speeding up (EGO_PULL_AWAY_MPS2), after the start-up lost time when it stands
+# (HCM 2010, ch. 31: 2 s). Reckoned at its present speed, a standing ego never made any green, and the lead
+# stood at its line through green after green (Munich seed 2: 96 s, a car between them)
+START_UP_LOST_S = 2.0
 STOP_DECEL_MPS2 = 2.0  # the lead's planned deceleration when it stops for the ego at a green [m/s^2]
 STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
 # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor, and a permissive
@@ -234,12 +239,19 @@ class LeadVehicle:
             self._stop_at_light = False
         v_lead = float(w.speed_mps[w.slot_of[LEAD_ID]])
         can_stop = dist - STOP_BEFORE_M >= v_lead * v_lead / (2.0 * STOP_DECEL_MPS2)
-        if green and not self._stop_at_light and can_stop:
+        if green and can_stop and (not self._stop_at_light or v_lead < STAND_MPS):
             # decided again every step while the lead can still stop: an ego that slows down (a curve, a
-            # car pulling out) may no longer make the green the lead would still get through
+            # car pulling out) may no longer make the green the lead would still get through; and while it
+            # stands at the line: the ego may have closed up behind it
             ego_to_line = dist + float(w.length_m[w.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
+            if self.gap_m <= EGO_CLOSE_M:
+                limit = max(v_ego, self.bridge.lane_speed_limit(LEAD_ID))
+                lost = START_UP_LOST_S if v_ego < STAND_MPS else 0.0
+                ego_s = lost + pull_away_arrival(v_ego, limit, ego_to_line)[0]
+            else:
+                ego_s = ego_to_line / max(v_ego, 1.0)
             green_left = self.bridge.tls_green_left_s(tls_id, link)
-            self._stop_at_light = ego_to_line / max(v_ego, 1.0) + LIGHT_MARGIN_S > green_left
+            self._stop_at_light = ego_s + LIGHT_MARGIN_S > green_left
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))

@@ -414,6 +414,29 @@ def test_a_queue_along_the_whole_lane_holds_the_ego_at_the_last_point_until_it_m
     assert 150.0 + d.car.y > 200.0 + _CHANGE_LATEST_M + 30.0
 
 
+def test_held_short_of_the_last_point_by_a_car_ahead_the_ego_asks_no_one_to_stop():
+    """Munich seed 1: the ego stood behind the lead 15 m short of its last point; the car 'behind where its
+    rear would be' at that point stood ahead of the lead in the queue, and holding it blocked the lane."""
+    d = Drive()
+    _merging(d, 150.0, 10.0)
+    for k, front_m in enumerate(np.arange(205.0, 400.0, 7.0)):
+        _in_target_lane(d, f"q{k}", float(front_m), 0.0)
+    last_entry = 200.0 + _CHANGE_LATEST_M + 0.2 * 30.0
+    w = d.world
+    slot = w.add("ahead")
+    w.length_m[slot], w.width_m[slot], w.heading_deg[slot] = 4.5, 1.8, 0.0
+    w.x_m[slot], w.y_m[slot], w.edge_code[slot], w.lane_index[slot] = (
+        0.0,
+        last_entry - 12.0,
+        w.intern_edge("b"),
+        0,
+    )
+    for _ in range(400):
+        d.step()
+    assert d.car.v < 0.1 and 150.0 + d.car.y < last_entry - 14.0
+    assert d.bridge.let_in == [] and d.events == []
+
+
 def test_a_crawling_queue_in_the_new_lane_lets_the_ego_in_when_it_has_waited():
     """Munich seed 2, Helsinki seed 3: a queue crawling at 2 m/s, 2.5 m bumper to bumper, along the lane the
     ego must move into; no gap in it is secure, even for an impatient driver. Waiting at the last point, the

@@ -152,6 +152,21 @@ def test_the_lead_decides_again_when_the_ego_slows_down_before_a_green():
     assert not lead2.waiting
 
 
+def test_the_lead_standing_at_a_green_goes_when_the_ego_queued_behind_it_makes_the_green_from_rest():
+    """Munich seed 2: the lead stood at its line for the ego, a car between them; reckoned at the ego's
+    present speed (0) no green was ever long enough, and the lead stood through green after green. Queued
+    behind the lead, the ego goes when it goes: start-up lost time 2 s + 15 m speeding up at 1.5 m/s^2
+    (4.5 s) + the 1.5-s margin = 8 s."""
+    for green_left_s, waits in ((12.0, False), (6.0, True)):
+        sim = fake_sim(gap_m=10.0, ego_speed=0.0)
+        sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
+        sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 1.0, "G"), green_left_s
+        lead = _lead(sim)
+        lead._stop_at_light, lead._light = True, ("J", 0, True)  # it had stopped for the ego
+        lead.step(sim.world)
+        assert lead.waiting == waits, green_left_s
+
+
 def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_suits_both():
     sim = fake_sim(gap_m=25.0, ego_speed=5.0)
     sim.bridge.link = ("m", 10.0, "s")
