@@ -77,17 +77,18 @@ MERGE_LATE_DECEL_MPS2 = 4.5  # stopping short would need harder braking than thi
 # as the edge leaves room. (Slowing first to let the cars pass, putting it off only when still held up below
 # 2 m/s, was tried: in the experiment the lead drove away more often and two ego collisions came back.)
 MERGE_PUT_OFF_WITHIN_M, MERGE_PUT_OFF_M = 15.0, 20.0
-# Waiting at the last point (a queue alongside closes every gap): once impatient, the ego is let in, as a
-# driver stops for a blinking car: the nearest car in the new lane that can still stop, braking at
-# MERGE_LET_IN_DECEL_MPS2, MERGE_MIN_GAP_M behind the ego's rear stops (held at speed 0) until the ego
-# has begun to move over, for MERGE_LET_IN_S at most, then another is asked. (SUMO's gap control, TraCI
-# openGap, was asked before: it widens a car's gap to its own leader, which in a moving queue passes the
-# ego as well, so the gap never opened beside it: Munich seed 2, Helsinki seed 3.)
-MERGE_LET_IN_DECEL_MPS2, MERGE_LET_IN_S = 3.0, 10.0
-# only a car behind the ego stopping at the last point is let in: held short of it by a car ahead, the point
-# where it would be let in lies beside the queue ahead of it (Munich seed 1: the car held stood in front of
-# the lead, 15 m ahead of the ego, and blocked its lane for 170 s)
-MERGE_AT_POINT_M = 3.0
+# Held MERGE_LET_IN_AFTER_S (a stream passing, a queue alongside closes every gap), the ego is let in, as a
+# driver lets in a car that has been blinking a while: the nearest car behind it in the new lane that can
+# slow to its speed MERGE_MIN_GAP_M behind its rear (braking at MERGE_LET_IN_DECEL_MPS2) drives slower than
+# the ego (SUMO: speed capped every step; 0 while the ego stands) until the ego has begun to move over, for
+# MERGE_LET_IN_S at most; then another may be asked. Not while a car ahead holds the ego standing short of
+# where it would move over: the gap would open beside that car (Munich seed 1). (SUMO's gap control, TraCI
+# openGap, asked before, widens a car's gap to its own leader, which in a moving queue passes the ego as
+# well: the gap never opened beside it, Munich seed 2, Helsinki seed 3.)
+MERGE_LET_IN_AFTER_S, MERGE_LET_IN_DECEL_MPS2, MERGE_LET_IN_S = 5.0, 3.0, 10.0
+# ... and drops back at this much below the ego's speed: matching it, it kept a bumper gap of 2.5 m, short of
+# the secure gap the ego leaves a follower at speed (its tau), and the ego never moved over
+MERGE_LET_IN_DROP_BACK_MPS = 1.5
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -198,8 +199,8 @@ class EgoController:
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
         # waiting for a gap: (route index of the lane change's edge, since [s])
         self._merge_held: tuple[int, float] | None = None
-        # the car that stops to let the ego in: (its id, since [s], where the ego begins to enter the lane)
-        self._let_in: tuple[str, float, float] | None = None
+        # the car letting the ego in: (its id, since [s], route index of the lane change's edge)
+        self._let_in: tuple[str, float, int] | None = None
 
     def _start(self, w, slot: int) -> None:
         cx, cy, yaw = frames.sumo_to_mujoco(
@@ -235,12 +236,12 @@ class EgoController:
             self._rebuild_path()
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
-        self._end_let_in(w, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
         kw.update(self._lead_one_lane_over(w, s_front, kw))
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it (write_back): the cars
         # there see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
         self._new_lane, upcoming = self.path.lane_changes_around(s_front)
+        self._keep_letting_in(w, s_front)
         if self._new_lane is not None or (
             upcoming is not None and upcoming.enter_s - s_front <= MERGE_LOOK_M
         ):
@@ -249,7 +250,7 @@ class EgoController:
             if self._new_lane is not None:
                 kw.update(self._leader_in_new_lane(w, near, self._new_lane, s_front, kw))
             if upcoming is not None:
-                kw.update(self._merge(w, near, upcoming, s_front))
+                kw.update(self._merge(w, near, upcoming, s_front, kw))
         tls = self._next_tls(w, s_front)
         self._check_red_light(tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
@@ -434,11 +435,11 @@ class EgoController:
         return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": best[0],
                 "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
-    def _merge(self, w: World, near: np.ndarray, change: LaneChange, s_front: float) -> dict:
+    def _merge(self, w: World, near: np.ndarray, change: LaneChange, s_front: float, seen: dict) -> dict:
         """Whether the next lane change on the path (``change``) has a gap (see MERGE_LOOK_M). Without one
         the driver puts the change off along the lane it is in (MERGE_PUT_OFF_M at a time, as the edge
         allows) or, at the edge's end, waits short of it (``merge_dist_m``: its front at the point where it
-        would begin to enter the next lane)."""
+        would begin to enter the next lane); held long enough, it is let in. ``seen``: its leader so far."""
         enter_s = change.enter_s
         if enter_s - s_front > MERGE_LOOK_M:
             return {}
@@ -447,6 +448,19 @@ class EgoController:
         blocked, behind = self._no_gap(w, near, s_front, change, enter_s, v)
         if not blocked:
             return {}
+        held = self._merge_held
+        if (
+            held is not None
+            and held[0] == change.edge_index
+            and self._let_in is None
+            and behind is not None
+            and w.t_s - held[1] >= MERGE_LET_IN_AFTER_S
+            # not standing behind a car short of the point where it would move over (Munich seed 1)
+            and not (v < 0.5 and seen.get("leader_present") and seen["leader_gap_m"] < d + MERGE_FRONT_GAP_M)
+        ):
+            self.bridge.cap_speed(behind, max(v - MERGE_LET_IN_DROP_BACK_MPS, 0.0))
+            self._let_in = (behind, w.t_s, change.edge_index)
+            self.emit(SumoEvent("merge_let_in", behind, f"lets the ego into {change.to_lane_id}"))
         late = v * v > 2.0 * MERGE_LATE_DECEL_MPS2 * max(d - 1.0, 0.1)  # stopping short would be too hard
         if (d < MERGE_PUT_OFF_WITHIN_M or late) and change.delay_m < change.max_delay_m:
             self._change_delays[change.edge_index] = change.delay_m + MERGE_PUT_OFF_M
@@ -454,39 +468,30 @@ class EgoController:
             return {}
         if late:
             return {}  # committed
-        held = self._merge_held
         if held is None or held[0] != change.edge_index:
-            held = self._merge_held = (change.edge_index, w.t_s)
-        if (
-            self._let_in is None
-            and behind is not None
-            and v < 0.5
-            and change.delay_m >= change.max_delay_m  # the last point: no putting it off any more
-            and d < MERGE_AT_POINT_M  # standing there (not held short of it by a car ahead)
-            and w.t_s - held[1] >= MERGE_PATIENCE_S
-        ):
-            # waiting at the last point beside a queue: the car that would follow the ego stops for it
-            self.bridge.cap_speed(behind, 0.0)
-            self._let_in = (behind, w.t_s, enter_s)
-            self.emit(SumoEvent("merge_let_in", behind, f"stops to let the ego into {change.to_lane_id}"))
+            self._merge_held = (change.edge_index, w.t_s)
         return {"merge_dist_m": d}
 
-    def _end_let_in(self, w: World, s_front: float) -> None:
-        """The car that stopped to let the ego in drives on once the ego has begun to move over (it follows
-        the ego then), after MERGE_LET_IN_S, or when it has left the simulation."""
+    def _keep_letting_in(self, w: World, s_front: float) -> None:
+        """The car letting the ego in drives no faster than the ego; it is let go once the ego has begun to
+        move over (it follows the ego then), after MERGE_LET_IN_S, or when it has left the simulation."""
         if self._let_in is None:
             return
-        vid, since, enter_s = self._let_in
-        if s_front >= enter_s or w.t_s - since >= MERGE_LET_IN_S or vid not in w.slot_of:
-            if vid in w.slot_of:
-                self.bridge.cap_speed(vid, None)
+        vid, since, edge_index = self._let_in
+        moving_over = self._new_lane is not None and self._new_lane.edge_index == edge_index
+        if vid not in w.slot_of:
             self._let_in = None
+        elif moving_over or self.path.edge_index(s_front) > edge_index or w.t_s - since >= MERGE_LET_IN_S:
+            self.bridge.cap_speed(vid, None)
+            self._let_in = None
+        else:
+            self.bridge.cap_speed(vid, max(self.car.state().speed_mps - MERGE_LET_IN_DROP_BACK_MPS, 0.0))
 
     def _no_gap(self, w: World, near: np.ndarray, s_front: float, change: LaneChange, enter_s: float,
                 v: float) -> tuple[bool, str | None]:  # fmt: skip
         """Whether a vehicle in (or coming into) the lanes ``change`` enters leaves the ego no gap when its
-        front reaches ``enter_s``; and the nearest car on those lanes that can still stop MERGE_MIN_GAP_M
-        behind where the ego's rear would be (the one to let it in)."""
+        front reaches ``enter_s``; and the nearest car on those lanes that can still slow to the ego's speed
+        MERGE_MIN_GAP_M behind its rear (the one to let it in)."""
         held = self._merge_held
         impatient = held is not None and held[0] == change.edge_index and w.t_s - held[1] >= MERGE_PATIENCE_S
         tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
@@ -494,14 +499,17 @@ class EgoController:
         t_e, v_e = pull_away_arrival(v, max(v, self.path.speed_limit(s_front)[0]), enter_s - s_front)
         front = enter_s - change.s_start + change.delay_m  # the ego's front then, from the edge's start
         rear = front - self.car.params.length_m
+        rear_now = rear - (enter_s - s_front)
         blocked, behind, behind_p = False, None, -math.inf
         for slot, lane, p in self._watched(w, near, change, feeders=True):
             vf = float(w.speed_mps[slot])
-            stop_p = p + vf * self.step_s + vf * vf / (2.0 * MERGE_LET_IN_DECEL_MPS2)
+            faster = max(0.0, vf - v)  # it gains this on the ego until it has slowed to the ego's speed
+            matched_p = p + faster * self.step_s + faster * faster / (2.0 * MERGE_LET_IN_DECEL_MPS2)
             if (
                 lane in change.enters
                 and behind_p < p
-                and stop_p <= rear - MERGE_MIN_GAP_M
+                and matched_p <= rear_now - MERGE_MIN_GAP_M
+                and vf + 0.5 >= v  # a slower car falls behind anyway (the ego drives past a queue)
                 and w.ids[slot] != LEAD_ID
             ):
                 behind, behind_p = w.ids[slot], p

@@ -87,8 +87,9 @@ class FakeBridge:
         if speed_mps is None:
             self.caps.pop(vid)
         else:
+            if vid not in self.caps:
+                self.let_in.append(vid)
             self.caps[vid] = speed_mps
-            self.let_in.append(vid)
 
     def write_ego(self, x_m, y_m, heading_deg, speed_mps, *, verify_on_road=True, on_route=False):
         self.writes.append(dict(x=x_m, y=y_m, heading=heading_deg, speed=speed_mps, verify=verify_on_road,
@@ -437,6 +438,45 @@ def test_held_short_of_the_last_point_by_a_car_ahead_the_ego_asks_no_one_to_stop
     assert d.bridge.let_in == [] and d.events == []
 
 
+def _stream_on(d: Drive, fronts: dict[str, float], speed_mps: float) -> None:
+    """SUMO's part for a stream in the lane the ego moves into: each car at ``speed_mps`` or the speed it is
+    capped at, never closer than 2.5 m to the car ahead (no braking limits); gone at the road's end."""
+    for vid in sorted(fronts, key=fronts.get, reverse=True):
+        if vid not in d.world.slot_of:
+            continue
+        ahead = [f for v, f in fronts.items() if f > fronts[vid] and v in d.world.slot_of]
+        v = min(speed_mps, d.bridge.caps.get(vid, speed_mps))
+        front = min(fronts[vid] + v * STEP_S, min(ahead, default=1e9) - 4.5 - 2.5)
+        fronts[vid] = front
+        if front > 560.0:
+            d.world.remove(vid)
+        else:
+            _in_target_lane(d, vid, front, v)
+
+
+def test_a_stream_passing_in_the_new_lane_lets_the_ego_in_when_it_has_waited():
+    """Monaco seed 1: a stream at 12 m/s, 16 m apart, overtakes the ego in the lane it moves into; no gap is
+    secure, and five cars came between the lead and the ego. Held MERGE_PATIENCE_S, the ego is let in: the
+    nearest car behind it that can slow to its speed drives no faster than it until it has moved over."""
+    d = Drive()
+    _merging(d, 150.0, 8.0)
+    fronts = {f"s{k}": float(f) for k, f in enumerate(np.arange(-200.0, 300.0, 16.0))}
+    for vid, front in fronts.items():
+        _in_target_lane(d, vid, front, 12.0)
+    for _ in range(400):
+        d.step()
+        _stream_on(d, fronts, 12.0)
+        if _entering(d):
+            break
+    assert _entering(d), "the ego never moved over"
+    assert [e.kind for e in d.events] == ["merge_let_in"]
+    held = d.events[0].vehicle
+    assert fronts[held] <= 150.0 + d.car.y - 4.6 - 2.0  # behind the ego's rear
+    d.step()
+    _stream_on(d, fronts, 12.0)
+    assert held not in d.bridge.caps
+
+
 def test_a_crawling_queue_in_the_new_lane_lets_the_ego_in_when_it_has_waited():
     """Munich seed 2, Helsinki seed 3: a queue crawling at 2 m/s, 2.5 m bumper to bumper, along the lane the
     ego must move into; no gap in it is secure, even for an impatient driver. Waiting at the last point, the
@@ -450,17 +490,7 @@ def test_a_crawling_queue_in_the_new_lane_lets_the_ego_in_when_it_has_waited():
     first_wait = None
     for _ in range(600):
         d.step()
-        for vid in sorted(fronts, key=fronts.get, reverse=True):  # SUMO's part: the queue moves on
-            if vid not in d.world.slot_of:
-                continue
-            ahead = [f for v, f in fronts.items() if f > fronts[vid] and v in d.world.slot_of]
-            v = d.bridge.caps.get(vid, 2.0)
-            front = min(fronts[vid] + v * STEP_S, min(ahead, default=1e9) - 4.5 - 2.5)
-            fronts[vid] = front
-            if front > 560.0:
-                d.world.remove(vid)
-            else:
-                _in_target_lane(d, vid, front, v)
+        _stream_on(d, fronts, 2.0)
         if first_wait is None and d.logs[-1].get("driver_mode") == "merge" and d.car.v < 0.1:
             first_wait = d.world.t_s
         if _entering(d):
