@@ -102,7 +102,11 @@ class LeadBridge(FoesBridge, Protocol):
 
     def divert(self, vid: str, keep_off: set[str], min_ahead_m: float) -> str | None: ...
 
-    def keep_lane(self, vid: str, lane_index: int, duration_s: float) -> None: ...
+    def keep_lane(self, vid: str, lane_index: int, duration_s: float, force: bool = False) -> None: ...
+
+    def follower_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None: ...
+
+    def leader_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None: ...
 
 
 class EgoOnPath(Protocol):
@@ -139,6 +143,7 @@ class LeadVehicle:
         self._cut_in_seen: dict[str, float] = {}  # vehicle -> when its cut-in was counted
         self._stuck_since: float | None = None  # the lead stands in another lane than its way's, since when
         self._forcing = False  # ... and noses into that lane
+        self._lane: int | None = None  # the lane of its edge the lead's way takes (None: off the ego's route)
 
     def step(self, w: World) -> None:
         lead, ego = w.slot_of.get(LEAD_ID), w.slot_of.get(EGO_ID)
@@ -156,7 +161,11 @@ class LeadVehicle:
             between = self._car_between(w)
             if between is not None:
                 caps.append(_closing_cap(*between, self.wait_beyond_m))
-        holds = [c for c in (self._light_cap(w, v_ego), self._yield_cap(w)) if c is not None]
+        holds = [
+            c
+            for c in (self._light_cap(w, v_ego), self._yield_cap(w), self._queue_cap(w, lead))
+            if c is not None
+        ]
         self.waiting = bool(holds) or (self.wait_beyond_m > 0 and self.gap_m > ego_limit_m)
         cap = min(caps + holds) if caps or holds else math.inf
         if cap < self.bridge.lane_speed_limit(LEAD_ID):
@@ -171,6 +180,7 @@ class LeadVehicle:
         ahead, overtaking, keeping right) put the lead in another lane than the ego on multi-lane roads,
         where the ego passed it while it waited at a line (Helsinki, experiment: the lead was the ego's
         leader in 0-31 % of each phase)."""
+        self._lane = None
         path = self.ego.path if self.ego is not None else None
         code = int(w.edge_code[lead])
         if path is None or code < 0:
@@ -179,7 +189,21 @@ class LeadVehicle:
         lane = path.lane_on(w.edge_names[code], near_s or 0.0)
         if lane is None:
             return
+        self._lane = lane
         self.bridge.keep_lane(LEAD_ID, lane, LANE_HOLD_S, force=self._nose_in(w, lead, lane))
+
+    def _queue_cap(self, w: World, lead: int) -> float | None:
+        """Speed cap that stops the lead, in another lane than its way's, behind the last car of a queue in
+        that lane (crawling below LANE_FORCE_FOLLOWER_MPS), so it moves over behind it, else None. SUMO's own
+        lane change drove it on past the queue to nose in at its head, and the ego, on its path in that
+        lane, stayed behind the queue (Helsinki seed 1: 30 s behind a car that came between)."""
+        here, lane = int(w.lane_index[lead]), self._lane
+        if lane is None or here == lane:
+            return None
+        ahead = self.bridge.leader_beside(LEAD_ID, left=lane > here)
+        if ahead is None or ahead[1] < 0.0 or ahead[2] > LANE_FORCE_FOLLOWER_MPS:
+            return None  # no queue there, or the lead is beside it already (it noses in: _nose_in)
+        return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, ahead[1] - STOP_BEFORE_M))
 
     def _nose_in(self, w: World, lead: int, lane: int) -> bool:
         """Whether the lead, standing short of the lane its way goes on, should move over into a gap SUMO

@@ -550,6 +550,16 @@ class SumoBridge:
         fid, gap = min(found, key=lambda f: f[1])
         return fid, gap, veh.getSpeed(fid)
 
+    def leader_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None:
+        """(id, gap [m], speed [m/s]) of the nearest vehicle ahead of ``vid`` in the lane to its left (right);
+        the gap from ``vid``'s front to its rear less ``vid``'s minGap, as SUMO gives it (< 0: beside)."""
+        veh = self._sumo.vehicle
+        found = (veh.getLeftLeaders if left else veh.getRightLeaders)(vid)
+        if not found:
+            return None
+        lid, gap = min(found, key=lambda f: f[1])
+        return lid, gap, veh.getSpeed(lid)
+
     def next_link(self, vid: str) -> tuple[str, float, str] | None:
         """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None
         inside a junction or at the end of its route."""

@@ -29,6 +29,7 @@ class FakeBridge:
         self.lanes: list[int] = []  # lanes the lead was told to keep to ...
         self.forced: list[bool] = []  # ... and whether into a gap SUMO finds too small
         self.beside: tuple[str, float, float] | None = None  # the car behind the lead in the lane it moves to
+        self.ahead_beside: tuple[str, float, float] | None = None  # ... and the car ahead of it there
 
     def cap_speed(self, vid, speed):
         assert vid == LEAD_ID
@@ -67,6 +68,9 @@ class FakeBridge:
 
     def follower_beside(self, vid, left):
         return self.beside
+
+    def leader_beside(self, vid, left):
+        return self.ahead_beside
 
 
 class FakeEgo:
@@ -380,6 +384,23 @@ def test_the_lead_does_not_nose_in_front_of_a_moving_car():
         sim.world.t_s = k * 0.1
         lead.step(sim.world)
     assert not any(sim.bridge.forced) and sim.events == []
+
+
+def test_the_lead_in_the_wrong_lane_stops_behind_a_queue_in_its_lane_instead_of_passing_it():
+    """Helsinki seed 1: a queue stood at a red light in the lane the lead's way takes; SUMO's lane change
+    drove it on past the queue to its head, and the ego, on its path in that lane, stayed behind the queue.
+    The lead stops short of the queue's last car (and moves over behind it); a moving lane, or a queue it
+    is already beside, does not stop it."""
+    sim, lead = _stuck_in_lane_0(None)
+    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
+    sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 8.0
+    sim.bridge.ahead_beside = ("scv1", 20.0, 0.0)  # the queue's last car, its rear 20 m ahead
+    lead.step(sim.world)
+    assert lead.waiting and sim.bridge.caps[-1] == pytest.approx(math.sqrt(2 * 2.0 * 19.0))
+    for ahead in (("scv1", 20.0, 8.0), ("scv1", -2.0, 0.0), None):
+        sim.bridge.ahead_beside = ahead
+        lead.step(sim.world)
+        assert not lead.waiting, ahead
 
 
 def test_the_lead_does_not_hold_at_a_green_for_an_ego_that_has_passed_it():
