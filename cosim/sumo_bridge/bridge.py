@@ -149,7 +149,7 @@ class SumoBridge:
             slot = world.add(vid, is_ego=(vid == self.ego_id))
             world.length_m[slot] = veh.getLength(vid)
             world.width_m[slot] = veh.getWidth(vid)
-        events = [SumoEvent("teleport", v) for v in sim.getStartingTeleportIDList()]
+        events = [SumoEvent("teleport", v, self._where(world, v)) for v in sim.getStartingTeleportIDList()]
         colliding = set()
         for c in sim.getCollisions():  # SUMO repeats a collision every step the two overlap: report it once
             colliding.add((c.collider, c.victim))
@@ -169,6 +169,14 @@ class SumoBridge:
                 self.ego_on_road = on_road
                 events.append(SumoEvent("ego_on_road" if on_road else "ego_off_road", self.ego_id))
         return events
+
+    @staticmethod
+    def _where(world: World, vid: str) -> str:
+        """Where the snapshot (the step before) last had ``vid``: the lane a teleport took it from."""
+        slot = world.slot_of.get(vid)
+        if slot is None or world.edge_code[slot] < 0:
+            return ""
+        return f"from {world.edge_names[world.edge_code[slot]]}_{world.lane_index[slot]}"
 
     def _bodies_touch(self, collider: str, victim: str) -> bool:
         """Whether the two bodies SUMO found overlapping do: for the ego, its car (the pose written for this
