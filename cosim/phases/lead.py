@@ -46,8 +46,8 @@ YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
 EGO_CLOSE_M = 15.0  # ... until the ego is at most this far behind it [m]
 LIGHT_DECIDE_M = 70.0  # the lead decides whether to stop for the ego's sake this far before a light [m]
 LIGHT_MARGIN_S = 1.5  # the ego must reach the stop line this long before the green ends [s]
-# ... at its present speed; within EGO_CLOSE_M behind the lead (queued behind it, at most one car between)
-# it goes when the lead goes: speeding up (EGO_PULL_AWAY_MPS2), after the start-up lost time when it stands
+# ... at its present speed; queued behind the lead (within EGO_CLOSE_M, or behind a car between them that
+# is) it goes when the lead goes: speeding up (EGO_PULL_AWAY_MPS2), after the start-up lost time when it stands
 # (HCM 2010, ch. 31: 2 s). Reckoned at its present speed, a standing ego never made any green, and the lead
 # stood at its line through green after green (Munich seed 2: 96 s, a car between them)
 START_UP_LOST_S = 2.0
@@ -228,6 +228,20 @@ class LeadVehicle:
         self._forcing = True
         return True
 
+    def _ego_queued_behind(self) -> bool:
+        """Whether the ego is right behind the lead (within EGO_CLOSE_M), or as close as it can be with cars
+        between them: the car behind the lead within EGO_CLOSE_M of it, the ego within EGO_CLOSE_M of the car
+        ahead of it. Waiting for the ego to close up to EGO_CLOSE_M past a car between, the lead stood at a
+        line for good (Munich seed 2: 60 s and on, the ego 17 m behind, scv239 between them)."""
+        if self.gap_m <= EGO_CLOSE_M:
+            return True
+        percept = getattr(self.ego, "percept", None)
+        if self._between is None or percept is None or not percept.leader_present:
+            return False
+        if percept.leader_gap_m > EGO_CLOSE_M:
+            return False
+        return self.bridge.follower(LEAD_ID, EGO_CLOSE_M) is not None
+
     def _car_between(self, w: World) -> tuple[float, float] | None:
         """(speed [m/s], gap [m]) of the car right behind the lead while a car is between it and the ego."""
         if self._between is None:
@@ -268,7 +282,7 @@ class LeadVehicle:
             # car pulling out) may no longer make the green the lead would still get through; and while it
             # stands at the line: the ego may have closed up behind it
             ego_to_line = dist + float(w.length_m[w.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
-            if self.gap_m <= EGO_CLOSE_M:
+            if self._ego_queued_behind():
                 limit = max(v_ego, self.bridge.lane_speed_limit(LEAD_ID))
                 lost = START_UP_LOST_S if v_ego < STAND_MPS else 0.0
                 ego_s = lost + pull_away_arrival(v_ego, limit, ego_to_line)[0]
@@ -298,7 +312,7 @@ class LeadVehicle:
         self._yield_wait = (dist, self._yield_wait[1])
         movement = movement_of(direction)
         needed = critical_gap_s(movement, waited) + follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
-        if self.gap_m <= EGO_CLOSE_M and priority_gap_s(w, self.bridge, LEAD_ID, dist) >= needed:
+        if self._ego_queued_behind() and priority_gap_s(w, self.bridge, LEAD_ID, dist) >= needed:
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 

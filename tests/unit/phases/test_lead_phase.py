@@ -30,6 +30,7 @@ class FakeBridge:
         self.forced: list[bool] = []  # ... and whether into a gap SUMO finds too small
         self.beside: tuple[str, float, float] | None = None  # the car behind the lead in the lane it moves to
         self.ahead_beside: tuple[str, float, float] | None = None  # ... and the car ahead of it there
+        self.behind: tuple[str, float] | None = None  # the car behind the lead in its lane (id, gap)
 
     def cap_speed(self, vid, speed):
         assert vid == LEAD_ID
@@ -55,7 +56,7 @@ class FakeBridge:
         return ["a", "b", "c"]
 
     def follower(self, vid, distance_m):
-        return None
+        return self.behind if self.behind is not None and self.behind[1] <= distance_m else None
 
     def divert(self, vid, keep_off, min_ahead_m):
         self.diverted.append((vid, keep_off))
@@ -188,6 +189,24 @@ def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_su
     sim3.bridge.foes = [("foe", 10.0, 150.0, 0.0, False)]  # 15 s: room for both
     lead3.step(sim3.world)
     assert not lead3.waiting
+
+
+def test_the_lead_at_a_give_way_line_goes_when_the_ego_is_queued_behind_a_car_between_them():
+    """Munich seed 2: a car came between the lead and the ego; the lead waited at a line for the ego to close
+    up to 15 m, which the car between did not let it do, and all three stood there for good. The ego 3 m
+    behind that car, itself 2 m behind the lead: the ego is as close as it can be, and the lead goes."""
+    sim = fake_sim(gap_m=17.0, ego_speed=0.0)
+    sim.bridge.link = ("=", 1.0, "s")
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(sim.world)
+    assert lead.waiting  # the ego 17 m behind, nobody between: it waits for the ego to close up
+    sim.world.t_s = 0.1
+    sim.ego.sees("scv239")
+    sim.ego.percept.leader_gap_m = 3.0
+    sim.bridge.behind = ("scv239", 2.0)
+    lead.step(sim.world)
+    assert not lead.waiting
 
 
 def test_a_cut_in_is_logged_when_another_vehicle_becomes_the_ego_leader():
