@@ -4,20 +4,23 @@ considerate human leader, so the participant spends the drive following it.
 - It starts 20 m ahead of the ego at the first step (``Simulation._place_ego``) and keeps to the ego's
   route, which ``cosim.phases.route`` extends for both as they drive.
 - It drives in the lanes the ego's route path takes (``RoutePath.lane_on``: on the pass of the edge nearest
-  it), not in SUMO's own choice; standing short of that lane beside a queue or the ego, it noses in.
+  it), not in SUMO's own choice; it stops behind the last car of a queue in that lane rather than drive
+  past the queue, and standing short of that lane beside a queue or the ego, it noses in.
 - It drives a little below the limit (``sumo_bridge.LEAD_SPEED_FACTOR``) and never lets the gap along
   the route grow beyond ``wait_beyond_m``: its speed is capped at the ego's plus (wait_beyond_m - gap) /
   ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
   (after a red light that stopped only the ego, behind a slow participant).
 - At a line where it must yield (stop or give-way sign, minor road, priority to the right, roundabout
-  entry, a permissive green for a left turn) it waits until the ego has closed up behind it and the
+  entry, a permissive green for a left turn) it waits until the ego has closed up behind it (or as far as
+  a car between them lets it) and the
   priority traffic leaves a gap for both: the critical gap of the movement plus the follow-up headway the
   ego needs behind it (HCM 2010,
   ``cosim.driver.gap_acceptance``; shrinking with the waiting time as the ego's own does).
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
-  whether the ego, at its present speed, reaches the stop line before the green ends (the programme says
-  when), again every step while it can still stop; if not, it stops at the line itself and both wait for
-  the next green.
+  whether the ego, at its present speed (queued right behind it: speeding up when it goes, after the
+  start-up lost time), reaches the stop line before the green ends (the programme says when), again every
+  step while it can still stop or stands at the line; if not, it stops at the line itself and both wait
+  for the next green.
 - A vehicle that comes between the lead and the ego (a cut-in) is logged as a ``lead_cut_in`` event. If it
   is still there ``DIVERT_AFTER_S`` later and its route would keep it on the lead's way, it turns off at the
   next junction it can (``cut_in_diverted``), as a car in front of a confederate lead would eventually do:
