@@ -26,7 +26,7 @@ from cosim.scenario.signs import SIGN_KINDS, derive_signs, write_signs
 from cosim.sumo_bridge.network import read_network
 from cosim.sumo_bridge.tools import summarise_warnings, sumo_version
 
-CACHE_FORMAT = 25  # bump when the outputs of a build change for the same inputs
+CACHE_FORMAT = 27  # bump when the outputs of a build change for the same inputs
 NETWORK_FILES = ("network.net.xml", "buildings.poly.xml", "signs.add.xml", "network.json", "netconvert.log")
 SCENARIO_FILES = (*NETWORK_FILES, "routes.rou.xml", "scenario.sumocfg", "report.json")
 

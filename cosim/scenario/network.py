@@ -25,6 +25,7 @@ from cosim.scenario.conflicts import (
     fan_out_deletions,
     geometric_prohibitions,
     internal_stop_fixes,
+    overlapping_end_deletions,
     separated_shapes,
     turnaround_deletions,
 )
@@ -395,8 +396,9 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
     deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
     fan_outs = fan_out_deletions(net)
     merges, crossed = crossing_merge_deletions(net_file)
-    deletions += merges
-    deleted |= {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in merges}
+    overlaps, overlapping = overlapping_end_deletions(net_file)
+    deletions += merges + overlaps
+    deleted |= {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in merges + overlaps}
     prohibitions, pairs = geometric_prohibitions(net_file, deleted)
     stops, moved = internal_stop_fixes(net_file)
     shapes, separated = separated_shapes(net_file)
@@ -409,9 +411,14 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
             + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
             + "".join(line.strip() + "\n" for line in deletions + fan_outs)
             + "".join(f"{j} {a} / {b}: {d0} m apart -> {d1} m\n" for j, a, b, d0, d1 in separated)
+            + "".join(
+                f"{j} {a}->{b}: deleted, its lane end {d} m from another movement's\n"
+                for j, a, b, d in overlapping
+            )
         )
-    return {"turnarounds_removed": len(deletions) - len(merges), "lane_fan_outs_removed": len(fan_outs),
-            "crossing_merge_lanes_removed": len(merges),
+    return {"turnarounds_removed": len(deletions) - len(merges) - len(overlaps),
+            "lane_fan_outs_removed": len(fan_outs), "crossing_merge_lanes_removed": len(merges),
+            "overlapping_lanes_removed": len(overlaps),
             "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved),
             "internal_lanes_reshaped": len(shapes)}  # fmt: skip
 

@@ -26,6 +26,7 @@ from cosim.scenario.conflicts import (
     fan_out_deletions,
     geometric_prohibitions,
     internal_stop_fixes,
+    overlapping_end_deletions,
     separated_shapes,
     turnaround_deletions,
 )
@@ -66,6 +67,9 @@ def test_built_network_has_no_unsafe_junction_geometry(scenarios, name):
     # they join are themselves close (junctions joined by sub-metre edges), up to ~1.4 m are left
     _, close = separated_shapes(scn.net_file)
     assert all(before >= 1.0 for *_, before, _after in close), sorted(close, key=lambda c: c[3])[:5]
+    # no movement comes into a junction on a lane lying on top of another movement's lane out (Monaco's
+    # case is in test_real_maps)
+    assert overlapping_end_deletions(scn.net_file) == ([], [])
 
 
 @pytest.mark.slow

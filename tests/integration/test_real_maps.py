@@ -12,6 +12,7 @@ import sumolib
 from testpaths import shared_map
 
 from cosim.scenario import build_scenario
+from cosim.scenario.conflicts import overlapping_end_deletions
 from cosim.scenario.demand import HAIRPIN_DEG
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -26,10 +27,13 @@ def reports(tmp_path_factory):
     configs/maps) skips only its own tests."""
 
     class Reports(dict):
+        net_files: dict[str, Path] = {}
+
         def __missing__(self, name):
             scn = build_scenario(shared_map(name), tmp_path_factory.mktemp(name), density="low", seed=1,
                                  log=lambda *a: None)  # fmt: skip
             self[name] = scn.report
+            self.net_files[name] = scn.net_file
             return scn.report
 
     return Reports()
@@ -96,3 +100,19 @@ def test_ego_route_has_no_hairpin_turn(tmp_path, seed):
     for a, b in itertools.pairwise(route):
         turn = heading(*b.getShape()[:2]) - heading(*a.getShape()[-2:])
         assert abs((turn + 180.0) % 360.0 - 180.0) <= HAIRPIN_DEG, (a.getID(), b.getID())
+
+
+def test_monaco_lane_ends_that_lie_on_top_of_each_other_are_not_both_used(reports):
+    """Monaco 25198791: a divided road's carriageways meet a two-way road; the last metres of 166399498_1 (in)
+    and the first of 68814581#0_1 (out) lie 0-0.8 m apart, their internal lanes do not cross, and SUMO let
+    cars meet there (6 of 10 SCV collisions in the drive benchmark). The minor movement's lane is deleted,
+    its road's other lane still leads on."""
+    r = reports["monaco"]
+    assert r["network"]["junction_fixes"]["overlapping_lanes_removed"] >= 3, r["network"]["junction_fixes"]
+    net_file = reports.net_files["monaco"]
+    assert overlapping_end_deletions(net_file) == ([], [])
+    net = sumolib.net.readNet(str(net_file))
+    lanes_on = {
+        c.getFromLane().getID() for c in net.getEdge("166399498").getOutgoing()[net.getEdge("68814570")]
+    }
+    assert lanes_on == {"166399498_0"}, lanes_on
