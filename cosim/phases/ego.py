@@ -473,8 +473,9 @@ class EgoController:
         return {"merge_dist_m": d}
 
     def _keep_letting_in(self, w: World, s_front: float) -> None:
-        """The car letting the ego in drives no faster than the ego; it is let go once the ego has begun to
-        move over (it follows the ego then), after MERGE_LET_IN_S, or when it has left the simulation."""
+        """The car letting the ego in drives MERGE_LET_IN_DROP_BACK_MPS slower than the ego; it is let go once
+        the ego has begun to move over (it follows the ego then), after MERGE_LET_IN_S, or when it has left
+        the simulation."""
         if self._let_in is None:
             return
         vid, since, edge_index = self._let_in
