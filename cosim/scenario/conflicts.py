@@ -314,14 +314,15 @@ def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH
 
     Where two roads meet a node at a sharp angle (the two carriageways of a divided road joining a two-way
     road), OSM draws them so close that the last metres of one road's lane in and the first metres of the
-    other road's lane out lie within a car's width of each other (Monaco 25198791: 166399498_1 and 68814581#0_1, centre
-    lines 0-0.8 m apart over 10 m), though neither leads into the other: closer than ``clearance_m``, two cars
-    on their centre lines touch (no margin: lanes merely narrow, 1.8-2.1 m apart on Krems, are left alone). Their internal lanes do not cross,
-    so SUMO's right of way does not keep the two movements apart (MSLink: foe lanes without an intersection
-    are disregarded): a car entering from one lane met a car that had just left the junction on the other
-    (6 of 10 SCV collisions in the drive benchmark). The lower-ranked movement's lane is deleted when another
-    lane of its road still leads into the same road (cars change lanes before the junction); otherwise the
-    other movement's; otherwise both stay. Returns the lines and (junction, from lane, to lane, distance).
+    other road's lane out lie within ``clearance_m`` of each other, though neither leads into the other
+    (Monaco 25198791: 166399498_1 and 68814581#0_1, centre lines 0-0.8 m apart over 10 m). Closer than a
+    car's width, two cars on their centre lines touch; lanes merely narrow (1.8-2.1 m apart on Krems) are
+    left alone. The two internal lanes do not cross, so SUMO's right of way does not keep the movements
+    apart (MSLink: foe lanes without an intersection are disregarded): a car entering from one lane met a
+    car that had just left the junction on the other (6 of 10 SCV collisions in the drive benchmark). The
+    lower-ranked movement's lane is deleted when another lane of its road still leads into the same road
+    (cars change lanes before the junction); otherwise the other movement's; otherwise both stay. Returns
+    the lines and (junction, from lane, to lane, distance).
     """
     import shapely
 
