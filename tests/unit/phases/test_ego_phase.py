@@ -64,7 +64,7 @@ class FakeBridge:
         self.reject_route = False
         self.writes: list[dict] = []
         self.caps: dict[str, float] = {}  # vehicles held at a speed (cap_speed), by id
-        self.let_in: list[str] = []  # vehicles asked to stop for the ego, in order
+        self.let_in: list[str] = []  # vehicles asked to let the ego in, in order
 
     def next_tls(self, vid):
         assert vid == EGO_ID
