@@ -113,6 +113,27 @@ def _delete_line(c: _Conn) -> str:
     )
 
 
+def _lanes_into(conns: list[_Conn]) -> dict[tuple[str, str], set[str]]:
+    """(from edge, to edge) -> the from lanes of ``conns`` that lead from the one road into the other."""
+    into: dict[tuple[str, str], set[str]] = {}
+    for c in conns:
+        into.setdefault((c.from_edge, c.to_edge), set()).add(c.from_lane)
+    return into
+
+
+def _lane_to_delete(a: _Conn, b: _Conn, into: dict[tuple[str, str], set[str]]) -> _Conn | None:
+    """Of two movements that must not be used together, the lower-ranked one when another lane of its road
+    still leads into the same road (cars change lanes before the junction), else the other one, else None;
+    the one chosen is taken out of ``into``."""
+    hi, lo = (a, b) if _rank(a) <= _rank(b) else (b, a)
+    for c in (lo, hi):
+        lanes = into[(c.from_edge, c.to_edge)]
+        if c.from_lane in lanes and len(lanes) > 1:
+            lanes.discard(c.from_lane)
+            return c
+    return None
+
+
 def geometric_prohibitions(net_file: Path, skip: set[tuple[str, str]] = frozenset(),
                            clearance_m: float = VEHICLE_WIDTH_M + CLEARANCE_MARGIN_M):  # fmt: skip
     """``<prohibition>`` lines for connection pairs that come within ``clearance_m`` without being foes,
@@ -290,22 +311,16 @@ def crossing_merge_deletions(net_file: Path) -> tuple[list[str], list[tuple]]:
             continue
         unique = list({id(c): c for c in conns}.values())
         inner = {id(c): shapely.LineString([p for lane in c.chain for p in shapes[lane]]) for c in unique}
-        into: dict[tuple[str, str], set[str]] = {}  # (from edge, to edge) -> from lanes still used
-        for c in unique:
-            into.setdefault((c.from_edge, c.to_edge), set()).add(c.from_lane)
+        into = _lanes_into(unique)
         for a, b in itertools.combinations(unique, 2):
             if a.to_edge != b.to_edge or a.from_edge == b.from_edge or a.to_lane == b.to_lane:
                 continue
             if not inner[id(a)].crosses(inner[id(b)]):
                 continue
-            hi, lo = (a, b) if _rank(a) <= _rank(b) else (b, a)
-            for c in (lo, hi):
-                lanes = into[(c.from_edge, c.to_edge)]
-                if c.from_lane in lanes and len(lanes) > 1:
-                    lanes.discard(c.from_lane)
-                    lines.append(_delete_line(c))
-                    report.append((jid, c.from_lane, c.to_lane))
-                    break
+            c = _lane_to_delete(a, b, into)
+            if c is not None:
+                lines.append(_delete_line(c))
+                report.append((jid, c.from_lane, c.to_lane))
     return lines, report
 
 
@@ -337,9 +352,7 @@ def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH
         # from, the first metres of the lane it goes to
         last = {id(c): shapely.LineString(_cut(shapes[c.from_lane], CAR_LENGTH_M, True)) for c in unique}
         first = {id(c): shapely.LineString(_cut(shapes[c.to_lane], CAR_LENGTH_M, False)) for c in unique}
-        into: dict[tuple[str, str], set[str]] = {}  # (from edge, to edge) -> from lanes still used
-        for c in unique:
-            into.setdefault((c.from_edge, c.to_edge), set()).add(c.from_lane)
+        into = _lanes_into(unique)
         for a, b in itertools.combinations(unique, 2):
             if a.from_edge == b.from_edge or a.to_edge == b.to_edge:
                 continue  # one road's lanes, or merging into one road: SUMO keeps them apart
@@ -348,14 +361,10 @@ def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH
             d = min(last[id(a)].distance(first[id(b)]), last[id(b)].distance(first[id(a)]))
             if d >= clearance_m:
                 continue
-            hi, lo = (a, b) if _rank(a) <= _rank(b) else (b, a)
-            for c in (lo, hi):
-                lanes = into[(c.from_edge, c.to_edge)]
-                if c.from_lane in lanes and len(lanes) > 1:
-                    lanes.discard(c.from_lane)
-                    lines.append(_delete_line(c))
-                    report.append((jid, c.from_lane, c.to_lane, round(d, 2)))
-                    break
+            c = _lane_to_delete(a, b, into)
+            if c is not None:
+                lines.append(_delete_line(c))
+                report.append((jid, c.from_lane, c.to_lane, round(d, 2)))
     return lines, report
 
 

@@ -552,21 +552,20 @@ class SumoBridge:
     def follower_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None:
         """(id, gap [m], speed [m/s]) of the nearest vehicle behind ``vid`` in the lane to its left (right)."""
         veh = self._sumo.vehicle
-        found = (veh.getLeftFollowers if left else veh.getRightFollowers)(vid)
-        if not found:
-            return None
-        fid, gap = min(found, key=lambda f: f[1])
-        return fid, gap, veh.getSpeed(fid)
+        return self._nearest((veh.getLeftFollowers if left else veh.getRightFollowers)(vid))
 
     def leader_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None:
         """(id, gap [m], speed [m/s]) of the nearest vehicle ahead of ``vid`` in the lane to its left (right);
         the gap from ``vid``'s front to its rear less ``vid``'s minGap, as SUMO gives it (< 0: beside)."""
         veh = self._sumo.vehicle
-        found = (veh.getLeftLeaders if left else veh.getRightLeaders)(vid)
+        return self._nearest((veh.getLeftLeaders if left else veh.getRightLeaders)(vid))
+
+    def _nearest(self, found) -> tuple[str, float, float] | None:
+        """(id, gap, speed) of the nearest of SUMO's (id, gap) neighbours, None when there are none."""
         if not found:
             return None
-        lid, gap = min(found, key=lambda f: f[1])
-        return lid, gap, veh.getSpeed(lid)
+        nid, gap = min(found, key=lambda f: f[1])
+        return nid, gap, self._sumo.vehicle.getSpeed(nid)
 
     def next_link(self, vid: str) -> tuple[str, float, str] | None:
         """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None
