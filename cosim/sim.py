@@ -6,11 +6,19 @@ Every callable of a step reads the same snapshot (``sim.world``), so vehicle ord
 phases' results of the step are the fields of ``sim.outputs`` (a frozen ``cosim.outputs.StepOutputs``,
 complete before the log phase). A study can add its own callable ``fn(sim)`` to a phase with
 ``Simulation.add_hook(phase, fn)``: it runs after that phase's scheduled work.
+
+With ``radio_process`` (the default on a machine with a core to spare) the radio runs in a second process:
+the assistance phase gets the ego's OBU view of the step at once, and the rest of the radio step runs while
+this process drives the ego and SUMO computes the next step. The step is then written to the log early in
+the next ``step()`` (or by ``close()``), and ``outputs.vanet`` is filled in then; the file is the same, byte
+for byte (cosim.phases.vanet_process).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -33,6 +41,7 @@ from cosim.sumo_bridge.tools import sumo_version
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 PHASES = ("sumo", "vanet", "adas", "driver", "ego", "writeback", "log")
+RADIO_TOPICS = "/vanet/*"  # stands in outputs.log for the radio's messages until the radio process has them
 EGO_START_M = 2.0  # the ego's rear starts this far from the start of its route [m]
 LEAD_START_GAP_M = 20.0  # the lead starts this far ahead of the ego's front bumper [m]
 LEAD_LENGTH_M = 5.0  # SUMO's default car, which the lead's vType copies [m]
@@ -78,8 +87,9 @@ class Simulation:
 
     def __init__(self, config: RunConfig, *, out_dir: str | Path | None = None, gui: bool = False,
                  quiet: bool = True, scenario: Scenario | None = None, log=None,
-                 sumo_args: tuple[str, ...] = ()):  # fmt: skip
-        """``sumo_args`` are extra SUMO options (e.g. devices for a study: ``--device.ssm.explicit ego``)."""
+                 sumo_args: tuple[str, ...] = (), radio_process: bool | None = None):  # fmt: skip
+        """``sumo_args`` are extra SUMO options (e.g. devices for a study: ``--device.ssm.explicit ego``).
+        ``radio_process``: run the radio in a second process (None: ``radio_process_default()``)."""
         self.config = config
         self.quiet = quiet
         say = log or (lambda *_: None if quiet else print(*_))
@@ -110,17 +120,27 @@ class Simulation:
         self._start_guard_until: float | None = None
         self._placed = False  # the ego (and the lead) are placed on the route
         self.closed = False
+        self._radio_overlap = False  # the radio runs in a second process, overlapping SUMO's step
+        self._radio_open = False  # a radio step runs in the radio process
+        self._log_later: tuple | None = None  # (events, lights) of the step whose log waits for the radio
         try:
+            if config.vanet is not None:  # first: a radio process starts up while SUMO loads
+                if radio_process_default() if radio_process is None else radio_process:
+                    from cosim.phases.vanet_process import VanetProcess
+
+                    self.vanet = VanetProcess(config.vanet, self.scenario.buildings_file,
+                                              stream(config.seed, "vanet"), log=out_dir is not None)  # fmt: skip
+                    self._radio_overlap = True
+                else:
+                    from cosim.phases.vanet import VanetPhase
+
+                    self.vanet = VanetPhase(config.vanet, self.buildings, stream(config.seed, "vanet"),
+                                            log=out_dir is not None)  # fmt: skip
             self.bridge = SumoBridge(self.scenario.sumocfg, seed=config.seed, step_s=self.step_s, gui=gui,
                                      extra_args=sumo_args)  # fmt: skip
             if self.out_dir is not None:
                 self.mcap = McapLog(self.out_dir / "run.mcap", flush_every_s=config.log.flush_every_s)
                 self._write_metadata()
-            if config.vanet is not None:
-                from cosim.phases.vanet import VanetPhase
-
-                self.vanet = VanetPhase(config.vanet, self.buildings, stream(config.seed, "vanet"),
-                                        log=self.mcap is not None)  # fmt: skip
             if config.ego.enabled:
                 self._setup_ego()
                 if config.ego.physics == "mujoco":
@@ -169,10 +189,9 @@ class Simulation:
     @cached_property
     def buildings(self):
         """The scenario's building footprints, read and indexed once for the radio and system A."""
-        from cosim.buildings import Buildings
-        from cosim.scenario.buildings import load_buildings
+        from cosim.scenario.buildings import indexed_buildings
 
-        return Buildings(load_buildings(self.scenario.buildings_file)[0])
+        return indexed_buildings(self.scenario.buildings_file)
 
     @cached_property
     def drivable_edges(self) -> list:
@@ -315,8 +334,33 @@ class Simulation:
         self.current.ego_log = self.ego.write_back(self.world)
 
     def _vanet_step(self, sim) -> None:
-        self.current.vanet, topics = self.vanet.step(self.world, self.step_s)
-        self.current.log.update(topics)
+        self.vanet.begin(self.world, self.step_s)
+        if self._radio_overlap:  # finished while SUMO computes the next step (_finish_radio)
+            self._radio_open = True
+            self.current.log[RADIO_TOPICS] = None
+        else:
+            self.current.vanet, topics = self.vanet.finish()
+            self.current.log.update(topics)
+
+    def _finish_radio(self) -> None:
+        """The radio step under way, finished in its process: into that step's outputs and, with its log
+        messages in their place, the step into the log."""
+        if not self._radio_open:
+            return
+        res, topics = self.vanet.finish()
+        self._radio_open = False
+        out = self.outputs
+        if RADIO_TOPICS in out.log:  # outputs are the radio step's (a Ctrl-C may have cut that step short)
+            log = {}
+            for topic, msg in out.log.items():
+                if topic == RADIO_TOPICS:
+                    log.update(topics)
+                else:
+                    log[topic] = msg
+            self.outputs = dataclasses.replace(out, vanet=res, log=log)
+        later, self._log_later = self._log_later, None
+        if later is not None:
+            self.recorder.step(self.world, self.outputs, *later)
 
     def _adas_step(self, sim) -> None:
         out = self.adas.step(self.world)
@@ -340,7 +384,10 @@ class Simulation:
                                         lambda: getattr(getattr(getattr(ego, "driver", None), "debug", None), "mode", ""))  # fmt: skip
 
     def _log_step(self, sim) -> None:
-        self.recorder.step(self.world, self.outputs, self.events)
+        if self._radio_open:  # the log waits for the radio's messages (_finish_radio); SUMO steps before
+            self._log_later = (self.events, self.bridge.traffic_lights())
+        else:
+            self.recorder.step(self.world, self.outputs, self.events)
 
     def _emit(self, event: SumoEvent) -> None:
         """Add an event to this step's (for phases given ``emit`` as a port)."""
@@ -364,7 +411,9 @@ class Simulation:
     def step(self) -> World:
         """Advance one base step through every phase in order."""
         self.current = StepBuffer()
-        self.events = self.bridge.step(self.world)
+        self.bridge.advance()  # SUMO computes the step while the radio process finishes the last one
+        self._finish_radio()
+        self.events = self.bridge.read(self.world)
         for phase in PHASES:
             if phase == "log":
                 self.outputs = self.current.freeze()
@@ -407,6 +456,10 @@ class Simulation:
             return
         self.closed = True
         try:
+            try:
+                self._finish_radio()
+            except RuntimeError as exc:  # the radio process failed: the file still closes, one step short
+                print(f"warning: {exc}", file=sys.stderr)
             phases = (self.traffic, self.lead, self.ego, self.route, self.adas, self.vanet, self.recorder)
             for phase in phases:
                 if phase is not None:
@@ -426,3 +479,14 @@ class Simulation:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def radio_process_default() -> bool:
+    """The radio in a second process when a core is free for it: ``COSIM_RADIO_PROCESS`` (0 / 1) decides,
+    else on with two cores or more. Pools that fill every core with runs (experiment, sweep) turn it off."""
+    env = os.environ.get("COSIM_RADIO_PROCESS")
+    if env is not None:
+        return env.strip() not in ("", "0", "false", "no", "off")
+    return (
+        len(os.sched_getaffinity(0)) >= 2 if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1) >= 2
+    )

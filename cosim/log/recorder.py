@@ -63,9 +63,11 @@ class Recorder:
         self._channels.add(topic)
         self.log.channel(topic, TOPIC_SCHEMAS.get(topic))
 
-    def step(self, w: World, outputs: StepOutputs, events: Sequence[SumoEvent]) -> None:
+    def step(self, w: World, outputs: StepOutputs, events: Sequence[SumoEvent],
+             lights: tuple[list[str], list[str]] | None = None) -> None:  # fmt: skip
         """The step into the log: the ego, the traffic, the lights, the events, the phases' messages and the
-        Foxglove scene."""
+        Foxglove scene. ``lights``: the traffic lights' (ids, states) of the step, when SUMO has gone on
+        since (default: asked now)."""
         t, step, log = w.t_s, w.step, self.log
         ego = w.ego_slot
         if ego >= 0:
@@ -96,7 +98,7 @@ class Recorder:
                                w.x_m[idx], w.y_m[idx], w.heading_deg[idx], w.speed_mps[idx], w.accel_mps2[idx],
                                [names[c] if c >= 0 else "" for c in w.edge_code[idx].tolist()], w.lane_index[idx],
                                w.signals[idx])  # fmt: skip
-        ids, states = self.bridge.traffic_lights()
+        ids, states = lights if lights is not None else self.bridge.traffic_lights()
         changed = [(i, s) for i, s in zip(ids, states, strict=True) if self._tls_state.get(i) != s]
         if changed:
             self._tls_state.update(changed)

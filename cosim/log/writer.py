@@ -19,17 +19,16 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import pickle
 import signal
 import subprocess
 import sys
-import threading
 from collections.abc import Callable
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from cosim.childproc import send, start_child
 from cosim.log import schemas
 
 TOPIC_SCHEMAS = {
@@ -50,17 +49,6 @@ def _clean(value):
     if isinstance(value, dict):
         return {k: _clean(v) for k, v in value.items()}
     return value
-
-
-def _widen_pipe(stream) -> None:
-    """A 1 MiB pipe (Linux; 64 KiB by default) lets the run go on while the writer catches up with a burst
-    (the per-vehicle columns), instead of waiting for it at every large message."""
-    try:
-        import fcntl
-
-        fcntl.fcntl(stream.fileno(), fcntl.F_SETPIPE_SZ, 1 << 20)
-    except (ImportError, AttributeError, OSError):  # not Linux, or above /proc/sys/fs/pipe-max-size
-        pass
 
 
 def encode(message: dict) -> bytes:
@@ -164,18 +152,8 @@ class McapLog:
         self._proc: subprocess.Popen | None = None
         self._file: _File | None = None
         if background:
-            import cosim
-
-            root = str(Path(cosim.__file__).resolve().parents[1])  # the child imports this same cosim
-            env = {
-                **os.environ,
-                "PYTHONPATH": os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")])),
-            }
-            code = f"from cosim.log.writer import _serve; _serve({str(self.path)!r}, {chunk_size}, {flush_every_s!r})"
-            # own session: a Ctrl-C at the terminal reaches the run only, which then closes the log
-            self._proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, env=env,
-                                          stdout=subprocess.DEVNULL, bufsize=1 << 16, start_new_session=True)  # fmt: skip
-            _widen_pipe(self._proc.stdin)
+            self._proc = start_child(f"from cosim.log.writer import _serve; _serve({str(self.path)!r}, {chunk_size}, "
+                                     f"{flush_every_s!r})", replies=False)  # fmt: skip
         else:
             self._file = _File(self.path, chunk_size, flush_every_s)
 
@@ -188,18 +166,10 @@ class McapLog:
         if self._file is not None:
             getattr(self._file, method)(*args)
             return
-        data = pickle.dumps((method, args), protocol=pickle.HIGHEST_PROTOCOL)
-        # Ctrl-C / SIGTERM wait until the record is in the pipe: half a record would cost the file its end
-        masked = threading.current_thread() is threading.main_thread()
-        if masked:
-            old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
-            self._proc.stdin.write(data)
+            send(self._proc.stdin, (method, args), flush=False)
         except (BrokenPipeError, OSError):
             raise RuntimeError(f"the log writer of {self.path} stopped (its error is above)") from None
-        finally:
-            if masked:
-                signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
     def channel(self, topic: str, schema: dict | None = None) -> None:
         """Register ``topic`` now (with its own ``schema``; default: the topic's known one or a generic)."""

@@ -1,10 +1,14 @@
 """The VANET phase: every vehicle a station, one lockstep step of CAMs over SOTDMA through the aether.
 
 Ports: the run's VANET parameters, the shared building footprints, its own random stream; ``step`` reads
-the snapshot only.
+the snapshot only. A run drives it as ``begin`` (after which the ego's OBU view of the step is readable) and
+``finish`` (the step's result and log messages); ``cosim.phases.vanet_process.VanetProcess`` does the same
+with the layer in a second process, which finishes the step while this one goes on.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 
@@ -51,10 +55,22 @@ class VanetPhase:
         self.layer = VanetLayer(params, buildings, rng)
         self.log = log
         self.tx_log = params.tx_log
+        self._done: tuple[VanetStepResult, dict[str, object]] | None = None
 
-    def step(self, world: World, step_s: float) -> tuple[VanetStepResult, dict[str, object]]:
-        """One radio step on the snapshot: the layer's result and the log messages, by topic."""
-        res = self.layer.step(world, world.step, step_s)
+    def begin(self, world: World, step_s: float) -> None:
+        """Run the step on the snapshot (its result waits for ``finish``)."""
+        self._done = self.step(world, step_s)
+
+    def finish(self) -> tuple[VanetStepResult, dict[str, object]]:
+        """The result and the log messages of the step ``begin`` ran."""
+        done, self._done = self._done, None
+        return done
+
+    def step(self, world: World, step_s: float, on_view: Callable[[], None] | None = None
+             ) -> tuple[VanetStepResult, dict[str, object]]:  # fmt: skip
+        """One radio step on the snapshot: the layer's result and the log messages, by topic (``on_view``:
+        see ``VanetLayer.step``)."""
+        res = self.layer.step(world, world.step, step_s, on_view)
         topics: dict[str, object] = {}
         if self.log:
             columns = res.columns()
@@ -71,12 +87,15 @@ class VanetPhase:
         return self.layer.obu_view(world)
 
     def vehicle_of_station(self, world: World, station: int | None) -> str:
-        """The vehicle id behind a station id (for the log; system B itself never uses it)."""
-        if station is None:
-            return ""
-        ids = self.layer.station_id
-        hits = np.flatnonzero(ids[: world.capacity] == station)
-        return next((world.ids[h] for h in hits if world.valid[h]), "") or ""
+        return vehicle_of_station(world, self.layer.station_id, station)
 
     def close(self) -> None:
         pass
+
+
+def vehicle_of_station(world: World, station_ids: np.ndarray, station: int | None) -> str:
+    """The vehicle id behind a station id (for the log; system B itself never uses it)."""
+    if station is None:
+        return ""
+    hits = np.flatnonzero(station_ids[: world.capacity] == station)
+    return next((world.ids[h] for h in hits if world.valid[h]), "") or ""

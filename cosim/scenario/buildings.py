@@ -101,3 +101,10 @@ def load_buildings(path: str | Path):
         polys.append(geom)
         heights.append(h)
     return polys, np.asarray(heights, dtype=np.float64)
+
+
+def indexed_buildings(path: str | Path):
+    """A scenario's footprints indexed for the radio's shadowing and system A (``cosim.buildings.Buildings``)."""
+    from cosim.buildings import Buildings
+
+    return Buildings(load_buildings(path)[0])

@@ -134,8 +134,16 @@ class SumoBridge:
     # -- stepping --------------------------------------------------------------------------------------------
     def step(self, world: World) -> list[SumoEvent]:
         """Advance SUMO one step and refresh ``world`` in place; returns the step's traffic events."""
+        self.advance()
+        return self.read(world)
+
+    def advance(self) -> None:
+        """SUMO computes one step (``read`` brings it into the snapshot)."""
+        self._sumo.simulationStep()
+
+    def read(self, world: World) -> list[SumoEvent]:
+        """Refresh ``world`` in place from the step SUMO computed last; returns the step's traffic events."""
         sumo = self._sumo
-        sumo.simulationStep()
         sim = sumo.simulation
         world.step += 1
         world.t_s = sim.getTime()

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -265,8 +265,13 @@ class VanetLayer:
         self.known_depart[:cap] = world.depart_step[:cap]
 
     # -- one step --------------------------------------------------------------------------------------------
-    def step(self, world: World, step_index: int, dt_s: float) -> VanetStepResult:
-        """Run window [step_index dt, (step_index + 1) dt) on the snapshot ``world``."""
+    def step(self, world: World, step_index: int, dt_s: float, on_view: Callable[[], None] | None = None
+             ) -> VanetStepResult:  # fmt: skip
+        """Run window [step_index dt, (step_index + 1) dt) on the snapshot ``world``.
+
+        ``on_view`` is called as soon as the OBU views of the step are final (``obu_view``, ``station_id``):
+        after the step's records are stored, before the SOTDMA channel evaluation, so a radio process can
+        hand the ego's view back while it goes on (``cosim.phases.vanet_process``)."""
         clock = time.perf_counter
         t0 = clock()
         dt_us = round(dt_s * 1e6)
@@ -345,7 +350,7 @@ class VanetLayer:
         t2 = clock()
         timing["cam"] = t2 - t1
         if self.mac_path is not None:
-            return self._step_mac(world, step_index, valid, now_us, t_hi, n_gen, n_drop, timing, t2)
+            return self._step_mac(world, step_index, valid, now_us, t_hi, n_gen, n_drop, timing, t2, on_view)
 
         # 3. SOTDMA
         self.mac.enter(g_lo)
@@ -359,7 +364,9 @@ class VanetLayer:
         rec["rx_us"] = tx_us + self.slot_us
         rec["timeout"] = tx.timeout
         rec["offset"] = tx.offset
-        seqs = self.records.append(rec, now_us)
+        seqs = self.records.append(rec, now_us)  # the last change to what an OBU view reads this step
+        if on_view is not None:
+            on_view()
         t3 = clock()
         timing["sotdma"] = t3 - t2
 
@@ -411,7 +418,8 @@ class VanetLayer:
         timing["log"] = clock() - t5
         return result
 
-    def _step_mac(self, world, step_index, valid, now_us, t_hi, n_gen, n_drop, timing, t2) -> VanetStepResult:
+    def _step_mac(self, world, step_index, valid, now_us, t_hi, n_gen, n_drop, timing, t2, on_view
+                  ) -> VanetStepResult:  # fmt: skip
         """Steps 3-6 for an interface MAC (802.11p, C-V2X): see mac_path.py."""
         clock = time.perf_counter
         path = self.mac_path
@@ -421,6 +429,8 @@ class VanetLayer:
         xy = np.stack([x[active], y[active]], axis=1)
         out, rec, seqs, tx_slot, inbox = path.step(self, active, xy, now_us, self._dt_us)
         self._inbox = inbox
+        if on_view is not None:  # the step's records are stored inside the MAC's step: only now
+            on_view()
         t3 = clock()
         timing["mac"] = t3 - t2
         self._busy_us[active] += out.busy_us
