@@ -17,6 +17,14 @@ import threading
 from pathlib import Path
 
 
+def available_cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
 def start_child(code: str, *, replies: bool) -> subprocess.Popen:
     """``python -c code`` with pickles on its stdin (and, with ``replies``, from its stdout)."""
     import cosim

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 import cosim
+from cosim.childproc import available_cores
 from cosim.config import to_dict
 from cosim.health import DriveHealth
 from cosim.log import McapLog
@@ -487,6 +488,4 @@ def radio_process_default() -> bool:
     env = os.environ.get("COSIM_RADIO_PROCESS")
     if env is not None:
         return env.strip() not in ("", "0", "false", "no", "off")
-    return (
-        len(os.sched_getaffinity(0)) >= 2 if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1) >= 2
-    )
+    return available_cores() >= 2

@@ -10,6 +10,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from cosim.childproc import available_cores
 from cosim.errors import CosimError
 from cosim.experiment.analysis import (
     assumptions_markdown,
@@ -54,7 +55,10 @@ class PhaseSchedule:
         adas.active, adas.phase_name = "none", "pre" if t < self.bounds[0][0] else "post"
 
 
-def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path, progress=None) -> dict:
+def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path, progress=None,
+                    radio_process: bool | None = None) -> dict:  # fmt: skip
+    """One participant's drive through the protocol, its time-gap table, plot and phase summary.
+    ``radio_process``: see ``cosim.sim.Simulation``."""
     from cosim.log import Log
     from cosim.sim import Simulation
 
@@ -81,7 +85,7 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
 
         stats = run_drive(cfg, pdir, on_sim=setup)
     else:
-        with Simulation(cfg, out_dir=pdir, quiet=True) as sim:
+        with Simulation(cfg, out_dir=pdir, quiet=True, radio_process=radio_process) as sim:
             setup(sim)
             steps = sim.steps_total
             for k in range(steps):
@@ -135,8 +139,8 @@ def _participant_context():
 
 
 def _worker(args):
-    exp, index, base, out_dir, progress = args
-    return run_participant(exp, index, base, out_dir, progress)
+    exp, index, base, out_dir, progress, radio_process = args
+    return run_participant(exp, index, base, out_dir, progress, radio_process)
 
 
 def render_clip(participant_dir: Path) -> None:
@@ -184,7 +188,8 @@ def run_experiment(
         progress = manager.dict({p.id: 0.0 for p in exp.participants})
         # a fresh process per participant: libsumo runs one simulation per process lifetime
         with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, max_tasks_per_child=1) as pool:
-            futures = [pool.submit(_worker, (exp, i, base, out_dir, progress)) for i in range(n)]
+            spare = 2 * jobs <= available_cores()  # a core for each participant's radio process
+            futures = [pool.submit(_worker, (exp, i, base, out_dir, progress, spare)) for i in range(n)]
             while not all(f.done() for f in futures):
                 time.sleep(1.0)
                 if clip and clipper is None and futures[0].done() and futures[0].exception() is None:

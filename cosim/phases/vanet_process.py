@@ -1,9 +1,10 @@
 """The VANET phase in a second process, so that a run uses both cores (issue 20).
 
 ``begin`` sends the step's snapshot and waits only for what the assistance phase reads this step: the
-ego's OBU view and the station ids, final once the step's CAMs are stored (``VanetLayer.step``'s
-``on_view``). The radio process then evaluates the channel, the medium's bookkeeping and the log columns of
-the step while this process runs the driver, the ego and SUMO's next step; ``finish`` collects them
+ego's OBU view and the station ids, final once the last step's deliveries are in and the stations of this
+one are known (``VanetLayer.step``'s ``on_view``). The radio process then generates the CAMs, runs the
+medium access, evaluates the channel and builds the log columns of the step while this process runs the
+driver, the ego and SUMO's next step; ``finish`` collects them
 (``cosim.sim`` logs the step then). Same code, same inputs, same random stream: the results are those of
 ``VanetPhase`` to the bit (tests/integration/test_radio_process.py).
 
@@ -41,14 +42,14 @@ class Snapshot:
 
 
 class HeardRecords:
-    """The stored CAMs one OBU view can reach (the newest it decoded from each sender), standing in for the
-    layer's whole RecordStore: ``valid`` and ``get`` answer as the store did at the step."""
+    """The stored CAMs one OBU view holds (the newest it decoded from each sender), standing in for the
+    layer's whole RecordStore: ``held`` and ``get`` answer as the store does for that view."""
 
-    def __init__(self, store, seqs: np.ndarray):
-        self.seqs = np.sort(seqs[store.valid(seqs)])
+    def __init__(self, store, seqs: np.ndarray, now_us: int):
+        self.seqs = np.sort(seqs[store.held(seqs, now_us)])
         self.rows = store.data[self.seqs % store.cap]
 
-    def valid(self, seqs: np.ndarray) -> np.ndarray:
+    def held(self, seqs: np.ndarray, now_us: int) -> np.ndarray:
         return np.isin(seqs, self.seqs)
 
     def get(self, seqs: np.ndarray) -> dict[str, np.ndarray]:
@@ -57,11 +58,11 @@ class HeardRecords:
 
 
 def portable_view(view: ObuView | None) -> ObuView | None:
-    """``view`` with only the records it can reach (a few kB instead of the store's MBs)."""
+    """``view`` with only the records it holds (a few kB instead of the store's MBs)."""
     if view is None:
         return None
-    records = HeardRecords(view.records, view.heard_row)
-    heard = view.heard_row[records.valid(view.heard_row)]  # the same seqs in the same order as before
+    records = HeardRecords(view.records, view.heard_row, view.now_us)
+    heard = view.heard_row[records.held(view.heard_row, view.now_us)]  # the same seqs in the same order
     return ObuView(records, heard, view.now_us, view.own, view.params, view.frame_us, view.receiver_slot)
 
 

@@ -12,24 +12,17 @@ closes and restarts cleanly).
 from __future__ import annotations
 
 import multiprocessing
-import os
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
+from cosim.childproc import available_cores
 from cosim.errors import CosimError
 
 
 class WorkerLost(RuntimeError):
     """The process running a call died before returning (killed, out of memory, crashed)."""
-
-
-def available_cores() -> int:
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
 
 
 def _die_with_parent() -> None:
@@ -57,6 +50,11 @@ class LocalBackend:
 
     def describe(self) -> str:
         return f"a local process pool ({self.jobs} worker{'s' if self.jobs > 1 else ''})"
+
+    @property
+    def spare_core_per_run(self) -> bool:
+        """Each run can have a second core (for its radio process: cosim.phases.vanet_process)."""
+        return 2 * self.jobs <= available_cores()
 
     def _get_pool(self) -> ProcessPoolExecutor:
         if self._pool is None:

@@ -20,6 +20,7 @@ config loader's one-line message; it never reaches a worker.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -54,6 +55,7 @@ class RunTask:
     config_sha: str
     pdr_bands_m: tuple[float, ...]
     cache_dir: str | None  # COSIM_CACHE_DIR for the worker; None = the worker's own default
+    radio_process: bool = False  # the run's radio in a process of its own (a core to spare per run)
 
 
 @dataclass(frozen=True)
@@ -160,7 +162,8 @@ def execute_run(task: RunTask) -> dict:
         run_dir.mkdir(parents=True)
         (run_dir / "config.yaml").write_text(yaml.safe_dump(task.config, sort_keys=False))
         config = from_dict(RunConfig, task.config)
-        with Simulation(config, out_dir=run_dir, quiet=True, log=lambda *a: None) as sim:
+        with Simulation(config, out_dir=run_dir, quiet=True, log=lambda *a: None,
+                        radio_process=task.radio_process) as sim:  # fmt: skip
             stats = sim.run()
         if stats.get("interrupted"):
             raise KeyboardInterrupt
@@ -329,7 +332,8 @@ def _execute(
 ) -> None:
     """Run the tasks; a run whose worker died is retried once, then recorded as failed."""
     attempts: Counter[str] = Counter()
-    pending = tasks
+    spare = getattr(backend, "spare_core_per_run", False)
+    pending = [dataclasses.replace(t, radio_process=spare) for t in tasks]
     while pending:
         lost: list[RunTask] = []
         progress = False

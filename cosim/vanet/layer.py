@@ -270,8 +270,10 @@ class VanetLayer:
         """Run window [step_index dt, (step_index + 1) dt) on the snapshot ``world``.
 
         ``on_view`` is called as soon as the OBU views of the step are final (``obu_view``, ``station_id``):
-        after the step's records are stored, before the SOTDMA channel evaluation, so a radio process can
-        hand the ego's view back while it goes on (``cosim.phases.vanet_process``)."""
+        with SOTDMA after the deliveries, the stations and the yaw rates, before the CAMs are generated
+        (what an OBU holds does not depend on the step's own transmissions: ``RecordStore``); with an
+        interface MAC after the MAC's step. A radio process hands the ego's view back then and goes on
+        (``cosim.phases.vanet_process``)."""
         clock = time.perf_counter
         t0 = clock()
         dt_us = round(dt_s * 1e6)
@@ -316,7 +318,9 @@ class VanetLayer:
         # 2. CAM generation
         now_ms = now_us // 1000
         x, y = world.x_m[:cap], world.y_m[:cap]
-        self.cam.observe(now_ms, valid, x, y, world.heading_deg[:cap])
+        self.cam.observe(now_ms, valid, x, y, world.heading_deg[:cap])  # the yaw rates, own state of a view
+        if on_view is not None and self.mac_path is None:
+            on_view()
         n_gen = n_drop = 0
         if now_ms % self.cam.check_ms == 0:
             dec = self.cam.check(now_ms, valid, x, y, world.heading_deg[:cap], world.speed_mps[:cap])
@@ -364,9 +368,7 @@ class VanetLayer:
         rec["rx_us"] = tx_us + self.slot_us
         rec["timeout"] = tx.timeout
         rec["offset"] = tx.offset
-        seqs = self.records.append(rec, now_us)  # the last change to what an OBU view reads this step
-        if on_view is not None:
-            on_view()
+        seqs = self.records.append(rec, now_us)
         t3 = clock()
         timing["sotdma"] = t3 - t2
 

@@ -120,8 +120,10 @@ def record_array(rec: dict[str, np.ndarray] | np.ndarray) -> np.ndarray:
 class RecordStore:
     """Ring buffer of transmitted CAMs addressed by a global sequence number.
 
-    Records are kept at least ``horizon_us`` after delivery (the buffer grows rather than overwrite a
-    younger one), so OBU tables can hold plain sequence numbers.
+    Records are kept ``horizon_us`` after delivery (the buffer grows rather than overwrite a younger one),
+    so OBU tables can hold plain sequence numbers; an OBU forgets a CAM older than that (``held``), however
+    long the ring happens to keep it. That makes what an OBU holds independent of the step's own
+    transmissions, so its view is final before the medium access runs (``VanetLayer.step``'s ``on_view``).
     """
 
     def __init__(self, horizon_us: int, capacity: int = 8192):
@@ -160,7 +162,14 @@ class RecordStore:
         return seqs
 
     def valid(self, seqs: np.ndarray) -> np.ndarray:
+        """In the ring (the record of that number is still stored)."""
         return (seqs >= 0) & (seqs >= self.next_seq - self.cap) & (seqs < self.next_seq)
+
+    def held(self, seqs: np.ndarray, now_us: int) -> np.ndarray:
+        """Stored and delivered less than the horizon before ``now_us`` (the ring never overwrites those)."""
+        ok = self.valid(seqs)
+        ok[ok] = self.data["rx_us"][seqs[ok] % self.cap] > now_us - self.horizon_us
+        return ok
 
     def get(self, seqs: np.ndarray) -> dict[str, np.ndarray]:
         rec = self.data[np.asarray(seqs, dtype=np.int64) % self.cap]
@@ -457,7 +466,7 @@ class ObuView:
     def neighbours(self, max_age_s: float | None = None) -> NeighbourTable:
         """Stations whose newest CAM was delivered within max_age_s (default: the map memory)."""
         max_age_us = round((self.params.map_memory_s if max_age_s is None else max_age_s) * 1e6)
-        seqs = self.heard_row[self.records.valid(self.heard_row)]
+        seqs = self.heard_row[self.records.held(self.heard_row, self.now_us)]
         if seqs.size:
             fresh = self.records.get(seqs)["rx_us"] >= self.now_us - max_age_us
             seqs = np.sort(seqs[fresh])
@@ -480,7 +489,7 @@ class ObuView:
         (None, inf) when nothing from it is held; (None, age) when the newest is older than max_age_s
         (default ``stale_after_s``): "no data".
         """
-        seqs = self.heard_row[self.records.valid(self.heard_row)]
+        seqs = self.heard_row[self.records.held(self.heard_row, self.now_us)]
         if seqs.size == 0:
             return None, float("inf")
         ids = self.records.get(seqs)["station_id"]

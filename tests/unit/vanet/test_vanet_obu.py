@@ -97,8 +97,8 @@ def test_extrapolation_to_now():
     assert table([old]).data_age_s[0] == pytest.approx(0.5)
 
 
-def _store_with(rows):
-    store = RecordStore(horizon_us=5_000_000, capacity=4)
+def _store_with(rows, horizon_us=20_000_000):
+    store = RecordStore(horizon_us=horizon_us, capacity=4)
     rec = records(rows)
     seqs = store.append(rec, now_us=NOW_US)
     return store, seqs
@@ -133,6 +133,21 @@ def test_view_table_ages_and_latest_from_with_staleness():
     assert view.latest_from(1234) == (None, float("inf"))
     lead = view.find_leader()
     assert lead is not None and lead.station_id == 7
+
+
+def test_an_obu_forgets_a_cam_older_than_the_horizon_however_long_the_ring_keeps_it():
+    """What an OBU holds depends on time alone, not on how many CAMs were sent since (the ring's fill), so
+    a view is final before the step's own transmissions are stored (the radio process relies on it)."""
+    rows = [dict(GOOD, station_id=9, sender_slot=4, gen_ms=2_000, rx_us=2_000_500)]
+    heard = np.full(8, -1, dtype=np.int64)
+    for horizon_s, held in ((7, False), (9, True)):
+        store, seqs = _store_with(rows, horizon_us=horizon_s * 1_000_000)
+        heard[4] = seqs[0]
+        assert store.valid(seqs).all()  # still in the ring
+        view = ObuView(store, heard, NOW_US, OWN, ObuParams(), 100_000, receiver_slot=0)
+        cam, _ = view.latest_from(9, max_age_s=float("inf"))  # 8 s old
+        assert (cam is not None) == held
+        assert len(view.neighbours(max_age_s=100.0)) == int(held)
 
 
 def test_record_store_grows_instead_of_dropping_young_records():
