@@ -257,6 +257,7 @@ class ScriptedDriver(Driver):
         self._sign_stopped_s = 0.0
         self._sign_waited_s = 0.0  # waiting at the current yield line: the driver grows impatient
         self._yielding = False  # the gap at the current yield line is too short (or the junction blocked)
+        self._following_through = False  # taking the gap the leader entered, behind it (follow-up headway)
         self.debug: DriverDebug | None = None
 
     # ------------------------------------------------------------------------------------------------------
@@ -451,8 +452,9 @@ class ScriptedDriver(Driver):
         elif d.sign in ("give_way", "yield") and phase == "approach":
             if self._yielding:
                 consider(_stop_accel(v, sign_d - margin, b), "give_way")
-            elif d.sign == "give_way":
-                # at give-way speed by the commit point, where the driver decides to go
+            elif d.sign == "give_way" and not self._following_through:
+                # at give-way speed by the commit point, where the driver decides to go (following the
+                # leader through, its pace)
                 consider(
                     _cap_accel(v, prof.give_way_speed_mps, sign_d - margin - _GIVE_WAY_COMMIT_M, b),
                     "give_way",
@@ -487,13 +489,14 @@ class ScriptedDriver(Driver):
         while the driver waits (cosim.driver.gap_acceptance)."""
         if d.sign is None:
             self._sign_key, self._sign_prev_d, self._sign_phase = None, math.inf, ""
-            self._yielding = False
+            self._yielding = self._following_through = False
             return ""
         prof = self.profile
         key = (d.sign, d.sign_id)
         if key != self._sign_key or dist_m > self._sign_prev_d + 5.0:  # another sign
             self._sign_key, self._sign_phase, self._sign_stopped_s = key, "approach", 0.0
             self._sign_waited_s = 0.0
+            self._following_through = False
         self._sign_prev_d = dist_m
         to_stop = dist_m - prof.stop_line_margin_m
         if v < _CREEP_MPS and to_stop < _WAIT_ZONE_M and self._sign_phase != "go":
@@ -501,10 +504,15 @@ class ScriptedDriver(Driver):
         needed = critical_gap_s(
             d.movement, self._sign_waited_s, prof.critical_gap_factor, prof.time_to_impatience_s
         )
-        if d.leader and 0.0 < d.gap - d.sign_d < _FOLLOW_THROUGH_M and dist_m < _WAIT_ZONE_M:
-            # queued right behind a vehicle that has just entered the junction: the follow-up headway
+        just_entered = d.leader and 0.0 < d.gap - d.sign_d < _FOLLOW_THROUGH_M and dist_m < _WAIT_ZONE_M
+        if just_entered or self._following_through:
+            # queued right behind a vehicle that has just entered the junction: the follow-up headway; once
+            # taken, it holds while the driver moves up to the line, as long as the gap lasts (re-judged on
+            # the leader's distance past the line, the gap lapsed while the driver moved up at give-way speed,
+            # and it stopped at the line with a 5-s gap that the leader had entered: Monaco, -166149542#0)
             needed = min(needed, follow_up_s(d.movement, prof.critical_gap_factor))
         self._yielding = d.conflict or d.jgap - age < needed
+        self._following_through = (just_entered or self._following_through) and not self._yielding
         if d.sign == "stop":
             if self._sign_phase == "approach":
                 if v < _STOPPED_MPS and to_stop < _NEAR_LINE_M:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -123,3 +124,34 @@ def test_unprotected_left_turn_at_a_green_yields_to_oncoming_traffic():
     crossed = next(t for t, x, _ in run if x > 100.0)
     assert crossed > 28.0
     assert any(y for t, x, y in run if t < 30.0)  # it yielded
+
+
+def test_queued_behind_a_leader_that_enters_a_gap_the_driver_follows_it_through():
+    """Standing 1.6 m behind a leader at a give-way line (front 8 m short of it); the leader enters a gap
+    of 11 s (its own t_c + t_f with margin) and pulls away at 2.5 m/s^2; then the stream comes every 3 s.
+    The occasional driver (slow to pull away, critical gaps x 1.15).
+    The driver takes the follow-up headway behind it and keeps it while it moves up (not re-judging the gap
+    as a first driver once the leader is 12 m past the line): it crosses inside the gap and never stops at
+    the line (it did, and waited through the stream, at Monaco's -166149542#0)."""
+    prof = PROFILES["occasional_driver"].without_noise()
+    drv = ScriptedDriver(prof, np.random.default_rng(1), math.radians(35.0), 2.7)
+    line = 97.7  # sign_dist_m = 100 - x - 2.3 (_percept)
+    t, x, v, out = 0.0, line - 8.0, 0.0, []
+    rear = x + 1.6  # the leader's rear bumper
+
+    def gap(t):
+        return 12.0 - t if t < 12.0 else 3.0 - ((t - 12.0) % 3.0)
+
+    while t < 20.0:
+        lead_rear = rear + (0.0 if t < 1.0 else 1.25 * (t - 1.0) ** 2)
+        p = _percept(t, v, x, gap(t))
+        p = dataclasses.replace(p, leader_present=True, leader_id="lead", leader_gap_m=lead_rear - x,
+                                leader_speed_mps=0.0 if t < 1.0 else 2.5 * (t - 1.0))  # fmt: skip
+        c = drv.act(p, 0.1)
+        v = max(0.0, v + (3.0 * c.throttle - 8.8 * c.brake) * 0.1)
+        x += v * 0.1
+        out.append((t, x, v))
+        t += 0.1
+    crossed = next((t for t, x, _ in out if x > line), None)
+    assert crossed is not None and crossed < 11.0, crossed
+    assert not any(v < 0.1 for t, x, v in out if 3.0 < t < crossed)  # moved up without stopping again
