@@ -86,6 +86,10 @@ MERGE_PUT_OFF_WITHIN_M, MERGE_PUT_OFF_M = 15.0, 20.0
 # openGap, asked before, widens a car's gap to its own leader, which in a moving queue passes the ego as
 # well: the gap never opened beside it, Munich seed 2, Helsinki seed 3.)
 MERGE_LET_IN_AFTER_S, MERGE_LET_IN_DECEL_MPS2, MERGE_LET_IN_S = 5.0, 3.0, 10.0
+# ... at once when the lead is ahead in the lane it moves into: the gap behind the lead is the participant's
+# place, and every car of the stream that passes the waiting ego fills it (Helsinki 194850767#2, Monaco
+# 166009792#2, experiment: after 4-7 s of waiting a passing car came between, lead as leader 0.23-0.72)
+MERGE_LET_IN_BEHIND_LEAD_S = 0.0
 # ... and drops back at this much below the ego's speed: matching it, it kept a bumper gap of 2.5 m, short of
 # the secure gap the ego leaves a follower at speed (its tau), and the ego never moved over
 MERGE_LET_IN_DROP_BACK_MPS = 1.5
@@ -449,15 +453,20 @@ class EgoController:
         if not blocked:
             return {}
         held = self._merge_held
+        lead_ahead = self._lead_in_new_lane(w, near, change, s_front)
+        patience_s = MERGE_LET_IN_BEHIND_LEAD_S if lead_ahead else MERGE_LET_IN_AFTER_S
         if (
             held is not None
             and held[0] == change.edge_index
-            and self._let_in is None
+            # a car nearer than the one letting the ego in (come in from a lane leading in) is asked instead
+            and (self._let_in is None or self._let_in[0] != behind)
             and behind is not None
-            and w.t_s - held[1] >= MERGE_LET_IN_AFTER_S
+            and w.t_s - held[1] >= patience_s
             # not standing behind a car short of the point where it would move over (Munich seed 1)
             and not (v < 0.5 and seen.get("leader_present") and seen["leader_gap_m"] < d + MERGE_FRONT_GAP_M)
         ):
+            if self._let_in is not None:
+                self.bridge.cap_speed(self._let_in[0], None)
             self.bridge.cap_speed(behind, max(v - MERGE_LET_IN_DROP_BACK_MPS, 0.0))
             self._let_in = (behind, w.t_s, change.edge_index)
             self.emit(SumoEvent("merge_let_in", behind, f"lets the ego into {change.to_lane_id}"))
@@ -471,6 +480,12 @@ class EgoController:
         if held is None or held[0] != change.edge_index:
             self._merge_held = (change.edge_index, w.t_s)
         return {"merge_dist_m": d}
+
+    def _lead_in_new_lane(self, w: World, near: np.ndarray, change: LaneChange, s_front: float) -> bool:
+        """Whether the lead car is ahead of the ego's front in the lanes ``change`` enters."""
+        front_now = s_front - change.s_start + change.delay_m  # the ego's front, from the edge's start
+        return any(w.ids[slot] == LEAD_ID and p - w.length_m[slot] > front_now
+                   for slot, _lane, p in self._watched(w, near, change, feeders=False))  # fmt: skip
 
     def _keep_letting_in(self, w: World, s_front: float) -> None:
         """The car letting the ego in drives MERGE_LET_IN_DROP_BACK_MPS slower than the ego; it is let go once
@@ -491,8 +506,10 @@ class EgoController:
     def _no_gap(self, w: World, near: np.ndarray, s_front: float, change: LaneChange, enter_s: float,
                 v: float) -> tuple[bool, str | None]:  # fmt: skip
         """Whether a vehicle in (or coming into) the lanes ``change`` enters leaves the ego no gap when its
-        front reaches ``enter_s``; and the nearest car on those lanes that can still slow to the ego's speed
-        MERGE_MIN_GAP_M behind its rear (the one to let it in)."""
+        front reaches ``enter_s``; and the nearest car on those lanes, or still on a lane leading into them,
+        that can still slow to the ego's speed MERGE_MIN_GAP_M behind its rear (the one to let it in; a car
+        still coming in passed the ego waiting near the edge's start, Helsinki 194850767#2), or the one already
+        letting it in while it is behind the ego."""
         held = self._merge_held
         impatient = held is not None and held[0] == change.edge_index and w.t_s - held[1] >= MERGE_PATIENCE_S
         tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
@@ -502,16 +519,21 @@ class EgoController:
         rear = front - self.car.params.length_m
         rear_now = rear - (enter_s - s_front)
         blocked, behind, behind_p = False, None, -math.inf
-        for slot, lane, p in self._watched(w, near, change, feeders=True):
+        for slot, _lane, p in self._watched(w, near, change, feeders=True):
             vf = float(w.speed_mps[slot])
             faster = max(0.0, vf - v)  # it gains this on the ego until it has slowed to the ego's speed
             matched_p = p + faster * self.step_s + faster * faster / (2.0 * MERGE_LET_IN_DECEL_MPS2)
+            letting_in = self._let_in is not None and w.ids[slot] == self._let_in[0]
             if (
-                lane in change.enters
-                and behind_p < p
-                and matched_p <= rear_now - MERGE_MIN_GAP_M
-                and vf + 0.5 >= v  # a slower car falls behind anyway (the ego drives past a queue)
+                behind_p < p
                 and w.ids[slot] != LEAD_ID
+                and (
+                    (letting_in and p <= rear_now)  # still behind: it stays the one (slowed, it is slower)
+                    or (
+                        matched_p <= rear_now - MERGE_MIN_GAP_M
+                        and vf + 0.5 >= v  # a slower car falls behind anyway (the ego drives past a queue)
+                    )
+                )
             ):
                 behind, behind_p = w.ids[slot], p
             if p - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:

@@ -70,6 +70,10 @@ BETWEEN_ALLOWANCE = 2.0
 DIVERT_AFTER_S = 5.0  # a vehicle between the lead and the ego this long is sent off the lead's way [s]
 DIVERT_AHEAD_M = 40.0  # ... at a junction at least this far ahead of it, room to pick its lane [m]
 DIVERT_RETRY_S = 5.0  # when no junction offers a way out yet, ask again after this long [s]
+# ... off the lead's way this far ahead of the lead: a long route comes back to its roads (15 km in the
+# experiment), and kept off the whole of it, the car found no exit but beyond a light where it stood ahead of
+# the ego for a whole red (Helsinki P1: straight on at 194850767#2 was the lead's way 2 km later) [m]
+DIVERT_KEEP_OFF_M = 500.0
 # one vehicle is one cut-in: the ego's leader may flip between it and the lead while it stays between them
 # (beside the ego in the lane the ego moves into, then ahead of it) [s]
 CUT_IN_ONCE_S = 60.0
@@ -101,7 +105,7 @@ class LeadBridge(FoesBridge, Protocol):
 
     def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None: ...
 
-    def route_ahead(self, vid: str) -> list[str]: ...
+    def route_ahead(self, vid: str, within_m: float = math.inf) -> list[str]: ...
 
     def divert(self, vid: str, keep_off: set[str], min_ahead_m: float) -> str | None: ...
 
@@ -361,7 +365,7 @@ class LeadVehicle:
         if t - self._between[1] < DIVERT_AFTER_S or (asked is not None and t - asked < DIVERT_RETRY_S):
             return
         self._divert_asked[leader] = t
-        keep_off = set(self.bridge.route_ahead(LEAD_ID))
+        keep_off = set(self.bridge.route_ahead(LEAD_ID, DIVERT_KEEP_OFF_M))
         exit_edge = self.bridge.divert(leader, keep_off, DIVERT_AHEAD_M)
         if exit_edge is not None:
             self._divert_asked[leader] = math.inf  # done: it leaves the lead's way at its next junction

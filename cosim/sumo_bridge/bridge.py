@@ -452,10 +452,19 @@ class SumoBridge:
                 found[to] = min(found.get(to, rank), rank)
         return sorted(found, key=lambda e: (found[e], e))
 
-    def route_ahead(self, vid: str) -> list[str]:
-        """The edges of the route SUMO holds for ``vid`` from the one it is on to the end."""
-        veh = self._sumo.vehicle
-        return list(veh.getRoute(vid)[max(veh.getRouteIndex(vid), 0) :])
+    def route_ahead(self, vid: str, within_m: float = math.inf) -> list[str]:
+        """The edges of the route SUMO holds for ``vid`` from the one it is on to the end, or to the first
+        that begins ``within_m`` or more ahead of the start of the one it is on."""
+        veh, lane_api = self._sumo.vehicle, self._sumo.lane
+        route = veh.getRoute(vid)[max(veh.getRouteIndex(vid), 0) :]
+        out, ahead = [], 0.0
+        for edge in route:
+            if ahead >= within_m:
+                break
+            out.append(edge)
+            if within_m < math.inf:
+                ahead += lane_api.getLength(f"{edge}_0")
+        return out
 
     def edges_left(self, vid: str) -> int:
         """Edges of the route SUMO holds for ``vid`` from the one it is on (or has just left) to the end."""

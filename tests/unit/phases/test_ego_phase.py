@@ -507,6 +507,60 @@ def test_a_crawling_queue_in_the_new_lane_lets_the_ego_in_when_it_has_waited():
     assert held not in d.bridge.caps  # moving over, the ego lets the car go on (it follows the ego now)
 
 
+def test_behind_the_lead_in_the_new_lane_the_ego_is_let_in_at_once_and_no_stream_car_comes_between():
+    """Helsinki 194850767#2, Monaco 166009792#2 (experiment): the lead drives ahead in the lane the ego must
+    move into, a faster stream behind it. Waiting the usual MERGE_LET_IN_AFTER_S, stream cars passed the
+    waiting ego into the gap behind the lead; that gap is the participant's, so the nearest stream car is
+    asked at once and the ego moves in right behind the lead. A stranger's car ahead there does not count:
+    the ego waits as long as before."""
+    waits = {}
+    for ahead in ("lead", "scv1"):
+        d = Drive()
+        _merging(d, 150.0, 8.0)
+        fronts = {f"s{k}": float(f) for k, f in enumerate(np.arange(-200.0, 140.0, 16.0))}
+        for vid, front in fronts.items():
+            _in_target_lane(d, vid, front, 12.0)
+        fronts[ahead] = 215.0
+        d.bridge.caps[ahead] = 8.0  # it drives at the ego's speed (not a let-in: set directly)
+        _in_target_lane(d, ahead, 215.0, 8.0)
+        for _ in range(400):
+            d.step()
+            _stream_on(d, fronts, 12.0)
+            if _entering(d) or d.events:
+                break
+        assert [e.kind for e in d.events] == ["merge_let_in"]
+        waits[ahead] = d.world.t_s - d.ego._merge_held[1]
+        if ahead == "lead":
+            for _ in range(400):
+                d.step()
+                _stream_on(d, fronts, 12.0)
+                if _entering(d):
+                    break
+            assert _entering(d), "the ego never moved over"
+            front = 150.0 + d.car.y
+            assert not [v for v, f in fronts.items() if v != "lead" and front < f < fronts["lead"]]
+    assert waits["lead"] <= 0.2 and waits["scv1"] >= 5.0, waits
+
+
+def test_a_car_nearer_than_the_one_letting_the_ego_in_is_asked_instead():
+    """Monaco 166009792#2 (experiment P2): the car asked to let the ego in was still behind it when another
+    came in between from a lane leading in; waiting for the first one's ask to run out, that car passed the
+    ego into the gap behind the lead. The nearest car behind the ego is the one asked: the first is let go."""
+    d = Drive()
+    _merging(d, 150.0, 8.0)
+    _in_target_lane(d, "s1", 100.0, 6.5)  # asked before, slowed below the ego's speed
+    d.bridge.caps["s1"] = 6.5
+    d.ego._let_in = ("s1", 8.0, 1)  # asked 2 s ago
+    d.ego._merge_held = (1, 4.0)
+    d.world.step = 99  # held 6 s already (patient still: judging gaps with SUMO's defaults)
+    d.step()
+    assert d.bridge.caps == {"s1": 6.5} and d.events == []  # nobody nearer: s1 keeps letting the ego in
+    _in_target_lane(d, "s0", 138.0, 11.0)  # in between, faster: it would pass the ego
+    d.step()
+    assert "s1" not in d.bridge.caps and "s0" in d.bridge.caps
+    assert [(e.kind, e.vehicle) for e in d.events] == [("merge_let_in", "s0")]
+
+
 def test_moving_over_the_ego_follows_the_car_ahead_in_the_lane_it_moves_into():
     """Half way across, the path still passes a slow car ahead in the new lane more than a half lane width
     away (Monaco: the ego ran into one crawling in a queue): it is the ego's leader all the same."""

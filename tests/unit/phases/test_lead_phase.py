@@ -11,7 +11,7 @@ import pytest
 
 from cosim.driver.route import RoutePath
 from cosim.phases.ego import priority_gap_s
-from cosim.phases.lead import LANE_FORCE_AFTER_S, LeadVehicle
+from cosim.phases.lead import DIVERT_KEEP_OFF_M, LANE_FORCE_AFTER_S, LeadVehicle
 from cosim.world import EGO_ID, LEAD_ID, World
 
 
@@ -51,8 +51,9 @@ class FakeBridge:
     def yield_foes(self, vid, lookahead_m):
         return self.foes
 
-    def route_ahead(self, vid):
+    def route_ahead(self, vid, within_m=math.inf):
         assert vid == LEAD_ID
+        self.route_within_m = within_m
         return ["a", "b", "c"]
 
     def follower(self, vid, distance_m):
@@ -269,6 +270,8 @@ def test_a_vehicle_that_stays_between_the_lead_and_the_ego_is_sent_off_the_leads
         lead.step(sim.world)
     # asked first after DIVERT_AFTER_S (5 s), again DIVERT_RETRY_S later, never every step
     assert [v for v, _ in sim.bridge.diverted] == ["scv7"] and sim.bridge.diverted[0][1] == {"a", "b", "c"}
+    # kept off the lead's way near ahead only: a long route comes back to its roads (Helsinki P1)
+    assert sim.bridge.route_within_m == DIVERT_KEEP_OFF_M
     sim.bridge.exit_edge = "side"
     for k in range(100, 200):
         sim.world.t_s = k * 0.1
