@@ -15,7 +15,8 @@ considerate human leader, so the participant spends the drive following it.
   a car between them lets it) and the
   priority traffic leaves a gap for both: the critical gap of the movement plus the follow-up headway the
   ego needs behind it (HCM 2010,
-  ``cosim.driver.gap_acceptance``; shrinking with the waiting time as the ego's own does).
+  ``cosim.driver.gap_acceptance``; shrinking with the waiting time as the ego's own does). After
+  ``YIELD_TOGETHER_S`` it takes a gap for itself alone and waits for the ego beyond the line.
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
   whether the ego, at its present speed (queued right behind it: speeding up when it goes, after the
   start-up lost time), reaches the stop line before the green ends (the programme says when), again every
@@ -61,6 +62,10 @@ STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
 # between it and the ego
 YIELD_STATES = "sw=mg"
 LEAD_FOLLOWER_GAP_FACTOR = 1.2  # the follow-up headway the lead leaves the ego: a cautious participant's
+# ... for this long at a yield line; then it takes a gap for itself alone and waits for the ego beyond the
+# junction. Priority traffic is seen 200 m out (paper IV.B), and a busy stream seldom leaves a gap for two
+# (HCM: t_c + t_f, 7.5-10 s): the lead stood 120 s at Monaco -166149542#0 with the participant behind it [s]
+YIELD_TOGETHER_S = 30.0
 LANE_HOLD_S = 1.0  # the lead is told the ego's lane every step, for this long [s]
 # while cars are between the lead and the ego, the lead keeps the car behind it within wait_beyond_m and the
 # ego within this many times wait_beyond_m: room for the cars between (waiting for the ego at wait_beyond_m
@@ -74,6 +79,7 @@ DIVERT_RETRY_S = 5.0  # when no junction offers a way out yet, ask again after t
 # experiment), and kept off the whole of it, the car found no exit but beyond a light where it stood ahead of
 # the ego for a whole red (Helsinki P1: straight on at 194850767#2 was the lead's way 2 km later) [m]
 DIVERT_KEEP_OFF_M = 500.0
+BETWEEN_MAX_CARS = 4  # the cars between the lead and the ego sent off, from the ego's leader on
 # one vehicle is one cut-in: the ego's leader may flip between it and the lead while it stays between them
 # (beside the ego in the lane the ego moves into, then ahead of it) [s]
 CUT_IN_ONCE_S = 60.0
@@ -104,6 +110,8 @@ class LeadBridge(FoesBridge, Protocol):
     def next_link(self, vid: str) -> tuple[str, float, str] | None: ...
 
     def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None: ...
+
+    def leader(self, vid: str, distance_m: float = 200.0) -> tuple[str, float] | None: ...
 
     def route_ahead(self, vid: str, within_m: float = math.inf) -> list[str]: ...
 
@@ -146,6 +154,7 @@ class LeadVehicle:
         self._ego_leader: str | None = None
         self._yield_wait: tuple | None = None  # (last distance to the yield line, when the lead came near it)
         self._between: tuple[str, float] | None = None  # (vehicle between the lead and the ego, since when)
+        self._between_since: dict[str, float] = {}  # every car between them (ego's leader on) -> since when
         self._divert_asked: dict[str, float] = {}  # vehicle -> when it was last asked to turn off
         self._cut_in_seen: dict[str, float] = {}  # vehicle -> when its cut-in was counted
         self._stuck_since: float | None = None  # the lead stands in another lane than its way's, since when
@@ -318,7 +327,9 @@ class LeadVehicle:
         waited = t - self._yield_wait[1]
         self._yield_wait = (dist, self._yield_wait[1])
         movement = movement_of(direction)
-        needed = critical_gap_s(movement, waited) + follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
+        needed = critical_gap_s(movement, waited)
+        if waited < YIELD_TOGETHER_S:
+            needed += follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
         if self._ego_queued_behind() and priority_gap_s(w, self.bridge, LEAD_ID, dist) >= needed:
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
@@ -353,23 +364,39 @@ class LeadVehicle:
         return off > CROSSING_DEG
 
     def _divert_cut_in(self, w: World) -> None:
-        """Send a vehicle that has stayed between the lead and the ego off the lead's way."""
+        """Send the vehicles that have stayed between the lead and the ego off the lead's way: the ego's
+        leader and the cars ahead of it up to the lead (Monaco -166149542#0: three priority cars came in
+        while the participant waited at the line; sending only the nearest off, the other two stayed
+        between them for the rest of the phase)."""
         leader = self._ego_leader
         if leader in (None, LEAD_ID) or not self.gap_m > 0:
             self._between = None
+            self._between_since.clear()
             return
         t = w.t_s
         if self._between is None or self._between[0] != leader:
             self._between = (leader, t)
-        asked = self._divert_asked.get(leader)
-        if t - self._between[1] < DIVERT_AFTER_S or (asked is not None and t - asked < DIVERT_RETRY_S):
-            return
-        self._divert_asked[leader] = t
-        keep_off = set(self.bridge.route_ahead(LEAD_ID, DIVERT_KEEP_OFF_M))
-        exit_edge = self.bridge.divert(leader, keep_off, DIVERT_AHEAD_M)
-        if exit_edge is not None:
-            self._divert_asked[leader] = math.inf  # done: it leaves the lead's way at its next junction
-            self.emit(SumoEvent("cut_in_diverted", leader, f"turns off onto {exit_edge}, off the lead's way"))
+        chain = [leader]
+        while len(chain) < BETWEEN_MAX_CARS:
+            ahead = self.bridge.leader(chain[-1], self.gap_m)
+            if ahead is None or ahead[0] in (LEAD_ID, EGO_ID) or ahead[0] in chain:
+                break
+            chain.append(ahead[0])
+        self._between_since = {vid: self._between_since.get(vid, t) for vid in chain}
+        keep_off = None
+        for vid, since in self._between_since.items():
+            asked = self._divert_asked.get(vid)
+            if t - since < DIVERT_AFTER_S or (asked is not None and t - asked < DIVERT_RETRY_S):
+                continue
+            self._divert_asked[vid] = t
+            if keep_off is None:
+                keep_off = set(self.bridge.route_ahead(LEAD_ID, DIVERT_KEEP_OFF_M))
+            exit_edge = self.bridge.divert(vid, keep_off, DIVERT_AHEAD_M)
+            if exit_edge is not None:
+                self._divert_asked[vid] = math.inf  # done: it leaves the lead's way at its next junction
+                self.emit(
+                    SumoEvent("cut_in_diverted", vid, f"turns off onto {exit_edge}, off the lead's way")
+                )
 
     def close(self) -> None:
         pass

@@ -12,6 +12,7 @@ see bench/bench_core.py).
 
 from __future__ import annotations
 
+import heapq
 import math
 from itertools import chain
 
@@ -34,6 +35,12 @@ from cosim.world import (  # noqa: F401 (the ids and SumoEvent are re-exported f
 # factor is drawn from 0.8-1.2: a fast one would leave the participant behind at every stretch)
 LEAD_SPEED_FACTOR = 0.95
 HELD_BACK_GAP_M = 10.0  # a standing car this close behind another is queued, not about to go [m]
+# Priority vehicles this far from the junction count (paper IV.B: approaching within 200 m). SUMO's
+# getJunctionFoes lists only the vehicles that have announced their approach to a foe link, i.e. those within
+# their own planning horizon of it (about a braking distance plus the lane they are on): a car 60 m away at
+# 10 m/s, one lane upstream, was not there, and the lead pulled out 6 s before it (Krems 268939011, seed 2).
+# The lanes with right of way and the lanes leading into them are therefore searched as far as this [m].
+FOE_UPSTREAM_M = 200.0
 OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
 MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
 # A car at rest in MuJoCo still creeps by ~1e-5 m. A pose a hair behind the last one makes SUMO measure the
@@ -124,6 +131,7 @@ class SumoBridge:
         self._colliding: set[tuple[str, str]] = set()
         self._removed: list[str] = []  # removed by cosim this step
         self._tls_logics: dict[tuple[str, str], list[tuple[float, str]] | None] = {}
+        self._incoming: dict[str, list[tuple[str, str, float]]] | None = None  # lane -> lanes into it
         self._lc_mode_before: dict[str, int] = {}  # vehicle -> its lane-change mode while keep_lane forces
 
     def close(self) -> None:
@@ -536,13 +544,71 @@ class SumoBridge:
         veh = self._sumo.vehicle
         foes = veh.getJunctionFoes(vid, lookahead_m)
         # tuples: (foeId, egoDist, foeDist, egoExitDist, foeExitDist, egoLane, foeLane, egoResponse, foeResponse)
+        found = {f[0]: (f[1], f[2]) for f in foes if f[7]}
+        for foe, dists in self._approaching_foes(vid, lookahead_m).items():
+            found.setdefault(foe, dists)
         out = []
-        for f in foes:
-            if not f[7]:
-                continue
-            standing = veh.getWaitingTime(f[0])
-            out.append((f[0], f[1], f[2], standing, standing > 0 and self._held_back(f[0])))
+        for foe, (ego_dist, foe_dist) in found.items():
+            standing = veh.getWaitingTime(foe)
+            out.append((foe, ego_dist, foe_dist, standing, standing > 0 and self._held_back(foe)))
         return out
+
+    def _approaching_foes(self, vid: str, lookahead_m: float) -> dict[str, tuple[float, float]]:
+        """foe id -> (``vid``'s distance to its stop line, the foe's distance to that junction) [m] for the
+        vehicles within FOE_UPSTREAM_M on the lanes with right of way over ``vid``'s next connection, or on
+        the lanes leading into them with a route through them (whether SUMO lists them yet or not)."""
+        veh, lane_api = self._sumo.vehicle, self._sumo.lane
+        lane = veh.getLaneID(vid)
+        if not lane or lane.startswith(":"):
+            return {}
+        ego_dist = lane_api.getLength(lane) - veh.getLanePosition(vid)
+        links = veh.getNextLinks(vid)  # (lane, hasPrio, isOpen, hasFoe, via, state, direction, length)
+        if ego_dist > lookahead_m or not links or links[0][1]:
+            return {}
+        # the connection leaves from the lane the vehicle must be in (not always the one it is in yet)
+        from_lanes = [up for up, via, _ in self._lanes_into(links[0][0]) if via == links[0][4]]
+        if not from_lanes:
+            return {}
+        out: dict[str, tuple[float, float]] = {}
+        # upstream, nearest first: (its end's distance to the junction, lane, the foe lane's edge)
+        todo = [(0.0, foe_lane, "") for foe_lane in sorted(set(lane_api.getFoes(from_lanes[0], links[0][0])))]
+        seen_lanes = set()
+        while todo:
+            end_dist, here, via_edge = heapq.heappop(todo)
+            if here.startswith(":") or here in seen_lanes or end_dist > FOE_UPSTREAM_M:
+                continue
+            seen_lanes.add(here)
+            length = lane_api.getLength(here)
+            on_way = via_edge or here.rsplit("_", 1)[0]  # the foe lane's edge
+            lanes = [(here, end_dist + length)]
+            for up, via, via_length in self._lanes_into(here):
+                heapq.heappush(todo, (end_dist + length + via_length, up, on_way))
+                if via:  # the upstream junction's internal lane, between the two
+                    lanes.append((via, end_dist + length + via_length))
+            for lane_id, lane_end in lanes:
+                for foe in lane_api.getLastStepVehicleIDs(lane_id):
+                    dist = lane_end - veh.getLanePosition(foe)
+                    if dist > FOE_UPSTREAM_M or foe == vid or foe in out:
+                        continue
+                    i = max(veh.getRouteIndex(foe), 0)
+                    on_foe_lane = not via_edge and lane_id == here
+                    if on_foe_lane or on_way in veh.getRoute(foe)[i : i + 6]:  # upstream: on its way there
+                        out[foe] = (ego_dist, dist)
+        return out
+
+    def _lanes_into(self, lane: str) -> list[tuple[str, str, float]]:
+        """(lane, the junction's internal lane between, its length) for the lanes with a connection into
+        ``lane`` (the network's reverse links, read from SUMO once)."""
+        if self._incoming is None:
+            lane_api, incoming = self._sumo.lane, {}
+            for here in lane_api.getIDList():
+                if here.startswith(":"):
+                    continue
+                # links: (toLane, hasPrio, isOpen, hasFoe, via, state, direction, length)
+                for link in lane_api.getLinks(here):
+                    incoming.setdefault(link[0], []).append((here, link[4], float(link[7])))
+            self._incoming = incoming
+        return self._incoming.get(lane, [])
 
     def _held_back(self, vid: str) -> bool:
         """A standing vehicle that cannot go now: a car within HELD_BACK_GAP_M ahead of it, or its next link

@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import pytest
-
-from cosim.sumo_bridge.tools import run_tool
+from plain_net import plain_net
 
 
 @pytest.fixture
@@ -12,23 +11,10 @@ def crossroads(tmp_path):
     # W -> C -> E -> F is the lead's way; C and E each have a side road north and south
     nodes = {"W": (-300, 0), "C": (0, 0), "E": (300, 0), "F": (600, 0), "N": (0, 300), "S": (0, -300),
              "N2": (300, 300), "S2": (300, -300)}  # fmt: skip
-    (tmp_path / "n.nod.xml").write_text(
-        "<nodes>" + "".join(f'<node id="{n}" x="{x}" y="{y}"/>' for n, (x, y) in nodes.items()) + "</nodes>"
-    )
     pairs = ["WC", "CE", "EF", "CN", "NC", "CS", "SC", "EN2", "N2E", "ES2", "S2E", "EC", "CW", "FE"]
-    edges = [(p, p[0], p[1:]) if p[0] in "WCEF" and p[1:] in nodes else (p, p[:-1], p[-1]) for p in pairs]
-    (tmp_path / "n.edg.xml").write_text(
-        "<edges>"
-        + "".join(
-            f'<edge id="{e}" from="{a}" to="{b}" numLanes="1" speed="13.89" priority="{3 if set(e) <= set("WCEF") else 1}"/>'
-            for e, a, b in edges
-        )
-        + "</edges>"
-    )
-    run = run_tool("netconvert", ["-n", str(tmp_path / "n.nod.xml"), "-e", str(tmp_path / "n.edg.xml"),
-                                  "-o", str(tmp_path / "n.net.xml")])  # fmt: skip
-    assert run.returncode == 0, run.log
-    return tmp_path / "n.net.xml"
+    ends = [(p[0], p[1:]) if p[0] in "WCEF" and p[1:] in nodes else (p[:-1], p[-1]) for p in pairs]
+    edges = {p: (a, b, 3 if set(p) <= set("WCEF") else 1) for p, (a, b) in zip(pairs, ends, strict=True)}
+    return plain_net(tmp_path, nodes, edges)
 
 
 @pytest.mark.own_process

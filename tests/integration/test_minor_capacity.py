@@ -24,6 +24,7 @@ import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from plain_net import plain_net
 
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.sumo_bridge.tools import run_tool
@@ -48,26 +49,10 @@ def hcm_potential_capacity(v_c: float, t_c: float, t_f: float) -> float:
 def junction(tmp_path_factory):
     d = tmp_path_factory.mktemp("minor")
     nodes = {"W": (-400, 0), "C": (0, 0), "E": (400, 0), "S": (0, -300), "N": (0, 300)}
-    (d / "n.nod.xml").write_text(
-        "<nodes>"
-        + "".join(
-            f'<node id="{n}" x="{x}" y="{y}" type="{"priority" if n == "C" else "dead_end"}"/>'
-            for n, (x, y) in nodes.items()
-        )
-        + "</nodes>"
-    )
     edges = {"WC": 3, "CE": 3, "EC": 3, "CW": 3, "SC": 1, "CN": 1}
-    (d / "n.edg.xml").write_text(
-        "<edges>"
-        + "".join(
-            f'<edge id="{e}" from="{e[0]}" to="{e[1]}" priority="{p}" numLanes="1" speed="{SPEED_MPS}"/>'
-            for e, p in edges.items()
-        )
-        + "</edges>"
+    plain_net(
+        d, nodes, {e: (e[0], e[1], p) for e, p in edges.items()}, priority_nodes="C", speed_mps=SPEED_MPS
     )
-    run = run_tool("netconvert", ["-n", str(d / "n.nod.xml"), "-e", str(d / "n.edg.xml"),
-                                  "-o", str(d / "n.net.xml"), "--no-turnarounds", "true"])  # fmt: skip
-    assert run.returncode == 0, run.log
     return d
 
 

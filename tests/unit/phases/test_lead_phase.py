@@ -11,7 +11,7 @@ import pytest
 
 from cosim.driver.route import RoutePath
 from cosim.phases.ego import priority_gap_s
-from cosim.phases.lead import DIVERT_KEEP_OFF_M, LANE_FORCE_AFTER_S, LeadVehicle
+from cosim.phases.lead import DIVERT_KEEP_OFF_M, LANE_FORCE_AFTER_S, YIELD_TOGETHER_S, LeadVehicle
 from cosim.world import EGO_ID, LEAD_ID, World
 
 
@@ -31,6 +31,7 @@ class FakeBridge:
         self.beside: tuple[str, float, float] | None = None  # the car behind the lead in the lane it moves to
         self.ahead_beside: tuple[str, float, float] | None = None  # ... and the car ahead of it there
         self.behind: tuple[str, float] | None = None  # the car behind the lead in its lane (id, gap)
+        self.leaders: dict[str, tuple[str, float]] = {}  # vehicle -> (its leader, gap) in its lane
 
     def cap_speed(self, vid, speed):
         assert vid == LEAD_ID
@@ -58,6 +59,9 @@ class FakeBridge:
 
     def follower(self, vid, distance_m):
         return self.behind if self.behind is not None and self.behind[1] <= distance_m else None
+
+    def leader(self, vid, distance_m=200.0):
+        return self.leaders.get(vid)
 
     def divert(self, vid, keep_off, min_ahead_m):
         self.diverted.append((vid, keep_off))
@@ -192,6 +196,26 @@ def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_su
     assert not lead3.waiting
 
 
+def test_after_waiting_at_a_give_way_line_the_lead_takes_a_gap_for_itself_alone():
+    """Monaco -166149542#0 (experiment P1): with priority traffic seen 200 m out, a busy stream never left a
+    gap for two (t_c + 1.2 t_f) and the lead stood 120 s at the line with the participant behind it. After
+    YIELD_TOGETHER_S it needs only its own critical gap; the participant follows with its own."""
+    sim = fake_sim(gap_m=2.0, ego_speed=0.0)
+    sim.bridge.link = ("m", 1.0, "s")
+    sim.world.add("foe")
+    sim.world.speed_mps[sim.world.slot_of["foe"]] = 10.0
+    sim.bridge.foes = [("foe", 1.0, 70.0, 0.0, False)]  # arrives in 7 s: > t_c (6.5 s), < t_c + 1.2 t_f
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting
+    sim.world.t_s = YIELD_TOGETHER_S - 1.0
+    lead.step(sim.world)
+    assert lead.waiting  # together, the gap must be t_c + 1.2 t_f however long they waited
+    sim.world.t_s = YIELD_TOGETHER_S + 0.1
+    lead.step(sim.world)
+    assert not lead.waiting
+
+
 def test_the_lead_at_a_give_way_line_goes_when_the_ego_is_queued_behind_a_car_between_them():
     """Munich seed 2: a car came between the lead and the ego; the lead waited at a line for the ego to close
     up to 15 m, which the car between did not let it do, and all three stood there for good. The ego 3 m
@@ -256,6 +280,22 @@ def test_a_car_crossing_the_egos_way_is_not_a_cut_in():
         sim.ego.sees(seen)
         lead.step(w)
     assert [e.vehicle for e in sim.events if e.kind == "lead_cut_in"] == ["x2"]
+
+
+def test_every_car_between_the_lead_and_the_ego_is_sent_off_not_only_the_egos_leader():
+    """Monaco -166149542#0: three priority cars came in while the participant waited at the line; sending
+    only its leader off, the two ahead of it stayed between the lead and the ego for the rest of the phase."""
+    sim = fake_sim(gap_m=40.0, ego_speed=8.0)
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(sim.world)
+    sim.ego.sees("scv1")
+    sim.bridge.leaders = {"scv1": ("scv2", 5.0), "scv2": ("scv3", 5.0), "scv3": (LEAD_ID, 5.0)}
+    for k in range(1, 60):  # 5.9 s with them between
+        sim.world.t_s = k * 0.1
+        lead.step(sim.world)
+    assert sorted(v for v, _ in sim.bridge.diverted) == ["scv1", "scv2", "scv3"]
+    assert sorted(e.vehicle for e in sim.events if e.kind == "cut_in_diverted") == ["scv1", "scv2", "scv3"]
 
 
 def test_a_vehicle_that_stays_between_the_lead_and_the_ego_is_sent_off_the_leads_way():

@@ -1,0 +1,38 @@
+"""Small SUMO networks for integration tests, built by netconvert from plain nodes and one-lane edges."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from cosim.sumo_bridge.tools import run_tool
+
+
+def plain_net(folder: Path, nodes: dict[str, tuple[float, float]], edges: dict[str, tuple[str, str, int]], *,
+              priority_nodes: str | None = None, speed_mps: float = 13.89) -> Path:  # fmt: skip
+    """``folder``/n.net.xml from ``nodes`` (id -> x, y [m]) and ``edges`` (id -> from node, to node, road
+    priority), every edge one lane at ``speed_mps``, no turnarounds. The nodes listed in ``priority_nodes``
+    are priority junctions and every other node a dead end; without it netconvert picks the types."""
+
+    def node_type(n: str) -> str:
+        if priority_nodes is None:
+            return ""
+        return f' type="{"priority" if n in priority_nodes else "dead_end"}"'
+
+    (folder / "n.nod.xml").write_text(
+        "<nodes>"
+        + "".join(f'<node id="{n}" x="{x}" y="{y}"{node_type(n)}/>' for n, (x, y) in nodes.items())
+        + "</nodes>"
+    )
+    (folder / "n.edg.xml").write_text(
+        "<edges>"
+        + "".join(
+            f'<edge id="{e}" from="{a}" to="{b}" numLanes="1" speed="{speed_mps}" priority="{p}"/>'
+            for e, (a, b, p) in edges.items()
+        )
+        + "</edges>"
+    )
+    out = folder / "n.net.xml"
+    run = run_tool("netconvert", ["-n", str(folder / "n.nod.xml"), "-e", str(folder / "n.edg.xml"),
+                                  "--no-turnarounds", "true", "-o", str(out)])  # fmt: skip
+    assert run.returncode == 0, run.log
+    return out
