@@ -519,7 +519,12 @@ class SumoBridge:
         return self._sumo.vehicle.getMinGap(vid)
 
     def leader(self, vid: str, distance_m: float = 200.0) -> tuple[str, float] | None:
-        res = self._sumo.vehicle.getLeader(vid, distance_m)
+        """(id, gap [m]) of the vehicle ahead of ``vid`` within ``distance_m`` (None also when ``vid`` has
+        left the simulation since the snapshot was read)."""
+        try:
+            res = self._sumo.vehicle.getLeader(vid, distance_m)
+        except Exception:  # libsumo.TraCIException: gone meanwhile
+            return None
         return (res[0], res[1]) if res and res[0] else None
 
     def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None:

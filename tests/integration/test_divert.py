@@ -35,6 +35,8 @@ def test_a_car_is_sent_off_the_way_and_never_back_onto_it(crossroads):
         assert bridge.route_ahead("x") == ["WC", "CE", "EF"]
         assert bridge.route_ahead("x", within_m=250.0) == ["WC"]  # CE begins ~300 m on from WC's start
         assert bridge.route_ahead("x", within_m=400.0) == ["WC", "CE"]
+        # a vehicle gone since the snapshot (the ego's leader of the step) has no leader, rather than an error
+        assert bridge.leader("gone") is None
         # 20 m before C: too close to turn there, so it turns off at E, 320 m ahead
         exit_edge = bridge.divert("x", way, min_ahead_m=40.0)
         assert exit_edge in ("EN2", "ES2")
