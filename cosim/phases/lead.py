@@ -376,12 +376,13 @@ class LeadVehicle:
         t = w.t_s
         if self._between is None or self._between[0] != leader:
             self._between = (leader, t)
-        chain = [leader]
-        while len(chain) < BETWEEN_MAX_CARS:
-            ahead = self.bridge.leader(chain[-1], self.gap_m)
+        chain, room = [leader], self.gap_m  # cars ahead of the ego's leader, no farther than the lead
+        while len(chain) < BETWEEN_MAX_CARS and room > 0:
+            ahead = self.bridge.leader(chain[-1], room)
             if ahead is None or ahead[0] in (LEAD_ID, EGO_ID) or ahead[0] in chain:
                 break
             chain.append(ahead[0])
+            room -= ahead[1]
         self._between_since = {vid: self._between_since.get(vid, t) for vid in chain}
         keep_off = None
         for vid, since in self._between_since.items():
