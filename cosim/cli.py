@@ -88,7 +88,9 @@ def _run(args) -> int:
     out = Path(args.out) if args.out else Path("results") / config.name
     say = None if not args.quiet else (lambda *a: None)
     with RunDir(out, force=args.force):
-        with Simulation(config, out_dir=out, gui=args.gui, quiet=args.quiet, log=say) as sim:
+        with Simulation(
+            config, out_dir=out, gui=args.gui, quiet=args.quiet, log=say, radio_process=None
+        ) as sim:
             stats = sim.run()
     stats["log"] = str(out / "run.mcap")
     print(json.dumps(stats) if args.quiet else "\n".join(f"{k}: {v}" for k, v in stats.items()))

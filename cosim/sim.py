@@ -7,11 +7,13 @@ phases' results of the step are the fields of ``sim.outputs`` (a frozen ``cosim.
 complete before the log phase). A study can add its own callable ``fn(sim)`` to a phase with
 ``Simulation.add_hook(phase, fn)``: it runs after that phase's scheduled work.
 
-With ``radio_process`` (the default on a machine with a core to spare) the radio runs in a second process:
+With ``radio_process`` (what ``cosim run`` and ``cosim drive`` use on a machine with a core to spare) the
+radio runs in a second process:
 the assistance phase gets the ego's OBU view of the step at once, and the rest of the radio step runs while
 this process drives the ego and SUMO computes the next step. The step is then written to the log early in
 the next ``step()`` (or by ``close()``), and ``outputs.vanet`` is filled in then; the file is the same, byte
-for byte (cosim.phases.vanet_process).
+for byte (cosim.phases.vanet_process). A script that steps the simulation itself gets the radio in its own
+process by default, so that ``outputs.vanet`` is the step's when ``step()`` returns.
 """
 
 from __future__ import annotations
@@ -88,9 +90,11 @@ class Simulation:
 
     def __init__(self, config: RunConfig, *, out_dir: str | Path | None = None, gui: bool = False,
                  quiet: bool = True, scenario: Scenario | None = None, log=None,
-                 sumo_args: tuple[str, ...] = (), radio_process: bool | None = None):  # fmt: skip
+                 sumo_args: tuple[str, ...] = (), radio_process: bool | None = False):  # fmt: skip
         """``sumo_args`` are extra SUMO options (e.g. devices for a study: ``--device.ssm.explicit ego``).
-        ``radio_process``: run the radio in a second process (None: ``radio_process_default()``)."""
+        ``radio_process``: run the radio in a second process (None: ``radio_process_default()``); then the
+        step's ``outputs.vanet`` is filled in only during the next ``step()`` (the commands that run a whole
+        simulation use it; a script reading the radio's results each step keeps the default, False)."""
         self.config = config
         self.quiet = quiet
         say = log or (lambda *_: None if quiet else print(*_))

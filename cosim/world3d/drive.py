@@ -261,7 +261,7 @@ def run_drive(config, out_dir: str | Path | None, params: DriveParams | None = N
                 PygameKeySource(drv.keyboard, pump_events=False)
         session.window.message("building the scenario ...")
         say = (lambda *a: None) if quiet else print
-        with Simulation(config, out_dir=out_dir, quiet=quiet, log=say) as sim:
+        with Simulation(config, out_dir=out_dir, quiet=quiet, log=say, radio_process=None) as sim:
             if drv.kind in ("keyboard", "wheel") or key_source is not None:
                 if sim.ego is None:
                     raise CosimError("a person driving needs an ego driven by MuJoCo (ego.physics: mujoco)")
