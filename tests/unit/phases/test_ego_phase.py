@@ -454,6 +454,16 @@ def _stream_on(d: Drive, fronts: dict[str, float], speed_mps: float) -> None:
             _in_target_lane(d, vid, front, v)
 
 
+def _drive_until_it_moves_over(d: Drive, fronts: dict[str, float], speed_mps: float) -> None:
+    """Steps with the stream moving (``_stream_on``) until the ego begins to enter the new lane (40 s at most)."""
+    for _ in range(400):
+        d.step()
+        _stream_on(d, fronts, speed_mps)
+        if _entering(d):
+            break
+    assert _entering(d), "the ego never moved over"
+
+
 def test_a_stream_passing_in_the_new_lane_lets_the_ego_in_when_it_has_waited():
     """Monaco seed 1: a stream at 12 m/s, 16 m apart, overtakes the ego in the lane it moves into; no gap is
     secure, and five cars came between the lead and the ego. Held MERGE_PATIENCE_S, the ego is let in: the
@@ -463,12 +473,7 @@ def test_a_stream_passing_in_the_new_lane_lets_the_ego_in_when_it_has_waited():
     fronts = {f"s{k}": float(f) for k, f in enumerate(np.arange(-200.0, 300.0, 16.0))}
     for vid, front in fronts.items():
         _in_target_lane(d, vid, front, 12.0)
-    for _ in range(400):
-        d.step()
-        _stream_on(d, fronts, 12.0)
-        if _entering(d):
-            break
-    assert _entering(d), "the ego never moved over"
+    _drive_until_it_moves_over(d, fronts, 12.0)
     assert [e.kind for e in d.events] == ["merge_let_in"]
     held = d.events[0].vehicle
     assert fronts[held] <= 150.0 + d.car.y - 4.6 - 2.0  # behind the ego's rear
@@ -531,12 +536,7 @@ def test_behind_the_lead_in_the_new_lane_the_ego_is_let_in_at_once_and_no_stream
         assert [e.kind for e in d.events] == ["merge_let_in"]
         waits[ahead] = d.world.t_s - d.ego._merge_held[1]
         if ahead == "lead":
-            for _ in range(400):
-                d.step()
-                _stream_on(d, fronts, 12.0)
-                if _entering(d):
-                    break
-            assert _entering(d), "the ego never moved over"
+            _drive_until_it_moves_over(d, fronts, 12.0)
             front = 150.0 + d.car.y
             assert not [v for v, f in fronts.items() if v != "lead" and front < f < fronts["lead"]]
     assert waits["lead"] <= 0.2 and waits["scv1"] >= 5.0, waits
