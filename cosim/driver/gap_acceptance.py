@@ -32,6 +32,8 @@ HEADWAYS_S = {
     "roundabout": (5.19, 3.19),
 }
 MOVEMENTS = tuple(HEADWAYS_S)
+# priority vehicles farther from the junction than this do not count (paper IV.B: "approaching within 200 m")
+FOE_RADIUS_M = 200.0
 FOE_ACCEL_MPS2 = 1.5  # a slow or standing priority vehicle is assumed to speed up at this rate [m/s^2]
 FOE_CRUISE_MPS = 5.0  # at or above this speed a priority vehicle is assumed to keep its speed [m/s]
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from cosim import frames
 from cosim.driver import Controls, Percept, make_driver
-from cosim.driver.gap_acceptance import arrival_time_s, movement_of
+from cosim.driver.gap_acceptance import FOE_RADIUS_M, arrival_time_s, movement_of
 from cosim.driver.route import LaneChange, RoutePath
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
@@ -30,7 +30,6 @@ PREVIEW_AHEAD_M = 160.0
 TLS_NEAR_M = 150.0  # a light nearer than this is looked up every step, farther ones once a second
 TLS_REFRESH_S = 1.0
 YIELD_LOOK_M = 80.0  # the gap at a junction where the ego must yield is judged from this close on [m]
-FOE_RADIUS_M = 200.0  # priority vehicles farther from the conflict than this do not count (paper IV.B)
 # a priority vehicle that has stood this long behind another car or at a closed link is waiting itself
 # (queued, yielding, blocked): a driver who sees it stand goes, as SUMO's junction model (which counts
 # approaching foes only) does. One first in line at an open link is not: a queue released by its green

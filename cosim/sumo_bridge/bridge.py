@@ -19,6 +19,7 @@ from itertools import chain
 import numpy as np
 import shapely
 
+from cosim.driver.gap_acceptance import FOE_RADIUS_M
 from cosim.errors import CosimError
 from cosim.sumo_bridge.tools import binary
 from cosim.world import (  # noqa: F401 (the ids and SumoEvent are re-exported for old imports)
@@ -35,12 +36,11 @@ from cosim.world import (  # noqa: F401 (the ids and SumoEvent are re-exported f
 # factor is drawn from 0.8-1.2: a fast one would leave the participant behind at every stretch)
 LEAD_SPEED_FACTOR = 0.95
 HELD_BACK_GAP_M = 10.0  # a standing car this close behind another is queued, not about to go [m]
-# Priority vehicles this far from the junction count (paper IV.B: approaching within 200 m). SUMO's
-# getJunctionFoes lists only the vehicles that have announced their approach to a foe link, i.e. those within
-# their own planning horizon of it (about a braking distance plus the lane they are on): a car 60 m away at
-# 10 m/s, one lane upstream, was not there, and the lead pulled out 6 s before it (Krems 268939011, seed 2).
-# The lanes with right of way and the lanes leading into them are therefore searched as far as this [m].
-FOE_UPSTREAM_M = 200.0
+# Priority vehicles within FOE_RADIUS_M of the junction count (paper IV.B). SUMO's getJunctionFoes lists
+# only the vehicles that have announced their approach to a foe link, i.e. those within their own planning
+# horizon of it (about a braking distance plus the lane they are on): a car 60 m away at 10 m/s, one lane
+# upstream, was not there, and the lead pulled out 6 s before it (Krems 268939011, seed 2). The lanes with
+# right of way and the lanes leading into them are therefore searched as far as FOE_RADIUS_M.
 OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
 MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
 # A car at rest in MuJoCo still creeps by ~1e-5 m. A pose a hair behind the last one makes SUMO measure the
@@ -560,7 +560,7 @@ class SumoBridge:
 
     def _approaching_foes(self, vid: str, lookahead_m: float) -> dict[str, tuple[float, float]]:
         """foe id -> (``vid``'s distance to its stop line, the foe's distance to that junction) [m] for the
-        vehicles within FOE_UPSTREAM_M on the lanes with right of way over ``vid``'s next connection, or on
+        vehicles within FOE_RADIUS_M on the lanes with right of way over ``vid``'s next connection, or on
         the lanes leading into them with a route through them (whether SUMO lists them yet or not)."""
         veh, lane_api = self._sumo.vehicle, self._sumo.lane
         lane = veh.getLaneID(vid)
@@ -580,7 +580,7 @@ class SumoBridge:
         seen_lanes = set()
         while todo:
             end_dist, here, via_edge = heapq.heappop(todo)
-            if here.startswith(":") or here in seen_lanes or end_dist > FOE_UPSTREAM_M:
+            if here.startswith(":") or here in seen_lanes or end_dist > FOE_RADIUS_M:
                 continue
             seen_lanes.add(here)
             length = lane_api.getLength(here)
@@ -593,7 +593,7 @@ class SumoBridge:
             for lane_id, lane_end in lanes:
                 for foe in lane_api.getLastStepVehicleIDs(lane_id):
                     dist = lane_end - veh.getLanePosition(foe)
-                    if dist > FOE_UPSTREAM_M or foe == vid or foe in out:
+                    if dist > FOE_RADIUS_M or foe == vid or foe in out:
                         continue
                     i = max(veh.getRouteIndex(foe), 0)
                     on_foe_lane = not via_edge and lane_id == here
