@@ -13,8 +13,8 @@ considerate human leader, so the participant spends the drive following it.
 - At a line where it must yield (stop or give-way sign, minor road, priority to the right, roundabout
   entry, a permissive green for a left turn) it waits until the ego has closed up behind it (or as far as
   a car between them lets it) and the
-  priority traffic leaves a gap for both: the critical gap of the movement plus the follow-up headway the
-  ego needs behind it (HCM 2010,
+  priority traffic leaves a gap for both: the critical gap of the movement plus, when the ego is the car
+  right behind it, the follow-up headway the ego needs behind it (HCM 2010,
   ``cosim.driver.gap_acceptance``; shrinking with the waiting time as the ego's own does). After
   ``YIELD_TOGETHER_S`` it takes a gap for itself alone and waits for the ego beyond the line.
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
@@ -258,6 +258,15 @@ class LeadVehicle:
             return False
         return self.bridge.follower(LEAD_ID, EGO_CLOSE_M) is not None
 
+    def _ego_follows_next(self) -> bool:
+        """Whether the ego, not another car, goes through a gap right after the lead: no car is behind the
+        lead within EGO_CLOSE_M in its lane but the ego. A gap for two is for the participant; with other cars
+        queued behind the lead they take the next gap whatever the lead waits for (Munich seed 2: the lead
+        stood 25 s at a permissive green for a gap for two, three cars behind it in the turning lane, the
+        ego in another lane unable to get in behind them until they moved)."""
+        behind = self.bridge.follower(LEAD_ID, EGO_CLOSE_M)
+        return behind is None or behind[0] == EGO_ID
+
     def _car_between(self, w: World) -> tuple[float, float] | None:
         """(speed [m/s], gap [m]) of the car right behind the lead while a car is between it and the ego."""
         if self._between is None:
@@ -328,7 +337,7 @@ class LeadVehicle:
         self._yield_wait = (dist, self._yield_wait[1])
         movement = movement_of(direction)
         needed = critical_gap_s(movement, waited)
-        if waited < YIELD_TOGETHER_S:
+        if waited < YIELD_TOGETHER_S and self._ego_follows_next():
             needed += follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
         if self._ego_queued_behind() and priority_gap_s(w, self.bridge, LEAD_ID, dist) >= needed:
             return None

@@ -477,3 +477,26 @@ def test_the_lead_does_not_hold_at_a_green_for_an_ego_that_has_passed_it():
     sim.ego.s_front_m = 70.0  # now 25 m ahead of the lead's front
     lead.step(sim.world)
     assert not lead.waiting and sim.bridge.caps[-1] is None
+
+
+def test_the_lead_waits_for_a_gap_for_two_only_when_the_ego_is_the_car_behind_it():
+    """Munich seed 2: at a permissive green the lead waited 25 s for a gap for itself and the participant,
+    three cars queued behind it in the turning lane and the participant in the next lane, which could not
+    get in behind them until they moved. A car behind the lead takes the next gap whatever the lead waits
+    for: the lead needs only its own critical gap."""
+    sim = fake_sim(gap_m=12.0, ego_speed=0.0)  # along the path, the ego is close (in the lane beside)
+    sim.bridge.link = ("g", 1.0, "l")
+    sim.world.add("foe")
+    sim.world.speed_mps[sim.world.slot_of["foe"]] = 10.0
+    sim.bridge.foes = [("foe", 1.0, 80.0, 0.0, False)]  # arrives in 8 s: > t_c of a left turn, < t_c + t_f
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting  # nobody behind it but the ego: a gap for two
+    sim.bridge.behind = ("scv161", 2.0)
+    sim.world.t_s = 0.1
+    lead.step(sim.world)
+    assert not lead.waiting
+    sim.bridge.behind = (EGO_ID, 2.0)
+    sim.world.t_s = 0.2
+    lead.step(sim.world)
+    assert lead.waiting
