@@ -12,8 +12,8 @@ radio runs in a second process:
 the assistance phase gets the ego's OBU view of the step at once, and the rest of the radio step runs while
 this process drives the ego and SUMO computes the next step. The step is then written to the log early in
 the next ``step()`` (or by ``close()``), and ``outputs.vanet`` is filled in then; the file is the same, byte
-for byte (cosim.phases.vanet_process). A script that steps the simulation itself gets the radio in its own
-process by default, so that ``outputs.vanet`` is the step's when ``step()`` returns.
+for byte (cosim.phases.vanet_process). A script that steps the simulation itself keeps the radio in the
+script's process by default, so that ``outputs.vanet`` is the step's when ``step()`` returns.
 """
 
 from __future__ import annotations

@@ -2,21 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 from cosim.sumo_bridge.tools import run_tool
 
 
 def plain_net(folder: Path, nodes: dict[str, tuple[float, float]], edges: dict[str, tuple[str, str, int]], *,
-              priority_nodes: str | None = None, speed_mps: float = 13.89) -> Path:  # fmt: skip
+              priority_nodes: Iterable[str] | None = None, speed_mps: float = 13.89) -> Path:  # fmt: skip
     """``folder``/n.net.xml from ``nodes`` (id -> x, y [m]) and ``edges`` (id -> from node, to node, road
     priority), every edge one lane at ``speed_mps``, no turnarounds. The nodes listed in ``priority_nodes``
     are priority junctions and every other node a dead end; without it netconvert picks the types."""
+    priority = None if priority_nodes is None else set(priority_nodes)  # a node id in it, not a substring
 
     def node_type(n: str) -> str:
-        if priority_nodes is None:
+        if priority is None:
             return ""
-        return f' type="{"priority" if n in priority_nodes else "dead_end"}"'
+        return f' type="{"priority" if n in priority else "dead_end"}"'
 
     (folder / "n.nod.xml").write_text(
         "<nodes>"

@@ -36,11 +36,6 @@ from cosim.world import (  # noqa: F401 (the ids and SumoEvent are re-exported f
 # factor is drawn from 0.8-1.2: a fast one would leave the participant behind at every stretch)
 LEAD_SPEED_FACTOR = 0.95
 HELD_BACK_GAP_M = 10.0  # a standing car this close behind another is queued, not about to go [m]
-# Priority vehicles within FOE_RADIUS_M of the junction count (paper IV.B). SUMO's getJunctionFoes lists
-# only the vehicles that have announced their approach to a foe link, i.e. those within their own planning
-# horizon of it (about a braking distance plus the lane they are on): a car 60 m away at 10 m/s, one lane
-# upstream, was not there, and the lead pulled out 6 s before it (Krems 268939011, seed 2). The lanes with
-# right of way and the lanes leading into them are therefore searched as far as FOE_RADIUS_M.
 OFF_ROAD_STEPS = 5  # the ego is off the road after this many consecutive steps without a lane
 MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centre line is off the road [m]
 # A car at rest in MuJoCo still creeps by ~1e-5 m. A pose a hair behind the last one makes SUMO measure the
@@ -561,7 +556,12 @@ class SumoBridge:
     def _approaching_foes(self, vid: str, lookahead_m: float) -> dict[str, tuple[float, float]]:
         """foe id -> (``vid``'s distance to its stop line, the foe's distance to that junction) [m] for the
         vehicles within FOE_RADIUS_M on the lanes with right of way over ``vid``'s next connection, or on
-        the lanes leading into them with a route through them (whether SUMO lists them yet or not)."""
+        the lanes leading into them with a route through them (whether SUMO lists them yet or not).
+
+        Priority vehicles within FOE_RADIUS_M of the junction count (paper IV.B); SUMO's getJunctionFoes lists
+        only those that have announced their approach to a foe link (about a braking distance plus the lane
+        they are on): a car 60 m away at 10 m/s, one lane upstream, was not there, and the lead pulled out 6 s
+        before it (Krems 268939011, seed 2)."""
         veh, lane_api = self._sumo.vehicle, self._sumo.lane
         lane = veh.getLaneID(vid)
         if not lane or lane.startswith(":"):

@@ -51,7 +51,7 @@ def junction(tmp_path_factory):
     nodes = {"W": (-400, 0), "C": (0, 0), "E": (400, 0), "S": (0, -300), "N": (0, 300)}
     edges = {"WC": 3, "CE": 3, "EC": 3, "CW": 3, "SC": 1, "CN": 1}
     plain_net(
-        d, nodes, {e: (e[0], e[1], p) for e, p in edges.items()}, priority_nodes="C", speed_mps=SPEED_MPS
+        d, nodes, {e: (e[0], e[1], p) for e, p in edges.items()}, priority_nodes=["C"], speed_mps=SPEED_MPS
     )
     return d
 

@@ -16,7 +16,7 @@ def t_junction(tmp_path):
     edges = {
         e: (e[0], e[1], p) for e, p in (("WA", 3), ("AC", 3), ("CE", 3), ("SC", 1), ("CN", 1), ("AX", 1))
     }
-    return plain_net(tmp_path, nodes, edges, priority_nodes="AC")
+    return plain_net(tmp_path, nodes, edges, priority_nodes=["A", "C"])
 
 
 @pytest.mark.own_process
