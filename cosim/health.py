@@ -69,10 +69,12 @@ class DriveHealth:
         self._still_since: float | None = None
         self._stall_logged = False
 
-    def step(self, w: World, events: list[SumoEvent], percept=None,
-             driver_mode: Callable[[], str] = lambda: "") -> list[SumoEvent]:  # fmt: skip
+    def step(self, w: World, events: list[SumoEvent], percept=None, driver_mode: Callable[[], str] = lambda: "",
+             lead_is_leader: bool | None = None) -> list[SumoEvent]:  # fmt: skip
         """Record the step. ``percept``: the ego driver's ``cosim.driver.Percept`` of the step (None without
-        a MuJoCo ego); ``driver_mode``: what the driver is doing, asked only to name a stall. Returns the
+        a MuJoCo ego); ``driver_mode``: what the driver is doing, asked only to name a stall;
+        ``lead_is_leader``: whether the ego follows the lead (``LeadVehicle.lead_is_leader``: also with a car
+        beside the lead as its nearest leader; default: the percept's leader is the lead). Returns the
         events to add to the step's (an ``ego_stall`` once a standstill passes STALL_S)."""
         t = float(w.t_s)
         self.all_t.append(t)
@@ -91,7 +93,7 @@ class DriveHealth:
         self.t.append(t)
         self.speed.append(speed)
         self.following.append(leader is not None and percept.leader_gap_m <= FOLLOW_M)
-        self.lead_leader.append(leader == LEAD_ID)
+        self.lead_leader.append(leader == LEAD_ID if lead_is_leader is None else lead_is_leader)
         self.at_red.append(red)
         stall = self._watch_stall(t, speed, red, percept, driver_mode)
         return [stall] if stall is not None else []

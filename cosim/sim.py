@@ -385,8 +385,13 @@ class Simulation:
     def _health_step(self, sim) -> None:
         ego = self.ego
         percept = getattr(ego, "percept", None)
-        self.events += self.health.step(self.world, self.events, percept,
-                                        lambda: getattr(getattr(getattr(ego, "driver", None), "debug", None), "mode", ""))  # fmt: skip
+        self.events += self.health.step(
+            self.world,
+            self.events,
+            percept,
+            lambda: getattr(getattr(getattr(ego, "driver", None), "debug", None), "mode", ""),
+            self.lead.lead_is_leader if self.lead is not None else None,
+        )
 
     def _log_step(self, sim) -> None:
         if self._radio_open:  # the log waits for the radio's messages (_finish_radio); SUMO steps before

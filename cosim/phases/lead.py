@@ -146,6 +146,7 @@ class LeadVehicle:
         self.wait_beyond_m = wait_beyond_m
         self.waiting = False  # the lead slows down or stands for the ego
         self.cut_ins = 0
+        self.lead_is_leader = False  # the ego follows the lead this step (see _log_cut_in)
         self.gap_m = math.nan  # along the route, the lead's rear to the ego's front [m]
         self._capped = False
         self._light: tuple | None = None  # (tls id, link index, state) of the light decided on ...
@@ -162,6 +163,7 @@ class LeadVehicle:
         self._lane: int | None = None  # the lane of its edge the lead's way takes (None: off the ego's route)
 
     def step(self, w: World) -> None:
+        self.lead_is_leader = False
         lead, ego = w.slot_of.get(LEAD_ID), w.slot_of.get(EGO_ID)
         if lead is None or ego is None:
             return
@@ -348,10 +350,14 @@ class LeadVehicle:
         lead, or of a car that had come between them (a second car in ahead of the first is a cut-in too:
         counting only changes from the lead, four cars taking a lane-change gap counted as one). A car
         crossing the ego's way is not between them: the ego sees it ahead for a moment as it passes (Krems
-        seed 2, at a stop sign: 16 crossing cars, each the ego's leader for 0.4 s)."""
+        seed 2, at a stop sign: 16 crossing cars, each the ego's leader for 0.4 s). Nor is a car beside the
+        lead (``_beside_lead``): the ego still follows the lead, and ``lead_is_leader`` says so."""
         t = w.t_s
         percept = getattr(self.ego, "percept", None)
         leader = percept.leader_id if percept is not None and percept.leader_present else None
+        if leader not in (None, LEAD_ID) and self.gap_m > 0 and self._beside_lead(w, leader):
+            leader = LEAD_ID
+        self.lead_is_leader = leader == LEAD_ID
         if leader is not None and self._crosses(w, leader):
             return
         was_between = self._ego_leader == LEAD_ID or self._ego_leader in self._cut_in_seen
@@ -362,6 +368,18 @@ class LeadVehicle:
             self.emit(SumoEvent("lead_cut_in", leader, f"between the lead and the ego ({self.gap_m:.0f} m)",
                                 self.gap_m))  # fmt: skip
         self._ego_leader = leader
+
+    def _beside_lead(self, w: World, vid: str) -> bool:
+        """Whether ``vid``, the ego's leader, is beside the lead rather than between it and the ego: its
+        front is past the lead's rear along the ego's path, so no car fits between the lead and the ego
+        (Helsinki seed 1, at a red: scv7 stood in the next lane beside the lead, its rear angled into the
+        ego's path; it was the ego's leader at 0-1 m for 20 s and counted as two cut-ins)."""
+        slot = w.slot_of.get(vid)
+        controller = self.ego
+        if slot is None or controller is None or controller.s_front_m is None or self._lead_s is None:
+            return False
+        front_s, _ = controller.path.project(float(w.x_m[slot]), float(w.y_m[slot]), near_s=self._lead_s)
+        return front_s > self._lead_s
 
     @staticmethod
     def _crosses(w: World, vid: str) -> bool:

@@ -61,3 +61,20 @@ def test_events_counted_and_a_sumo_ego_has_no_following_shares():
     assert rep["ego_distance_m"] == 320.0 and rep["window_s"] == 39.9
     assert rep["status"] == "degraded" and "1 collision(s) of the ego" in rep["problems"]
     assert math.isclose(health.report(10.0, 40.0)["ego_distance_m"], 240.8)
+
+
+def test_the_lead_share_takes_the_leads_word_on_whom_the_ego_follows():
+    """With a lead car the share counts the steps ``LeadVehicle.lead_is_leader`` says the ego follows it
+    (a car beside the lead as the percept's nearest leader included); without that word, the percept's."""
+    health = DriveHealth(EgoConfig(), 0.1)
+    w = World(capacity=4)
+    w.add(EGO_ID, is_ego=True)
+    beside = _percept(leader="scv7")
+    for step, says in enumerate([True] * 300 + [False] * 100):
+        w.step, w.t_s = step + 1, round((step + 1) * 0.1, 6)
+        w.speed_mps[w.slot_of[EGO_ID]] = 8.0
+        health.step(w, [], beside, lead_is_leader=says)
+    assert health.report()["lead_leader_share"] == 0.75
+    alone = DriveHealth(EgoConfig(), 0.1)
+    _drive(alone, w, 40.0, 8.0, beside, [])
+    assert alone.report()["lead_leader_share"] == 0.0

@@ -282,6 +282,28 @@ def test_a_car_crossing_the_egos_way_is_not_a_cut_in():
     assert [e.vehicle for e in sim.events if e.kind == "lead_cut_in"] == ["x2"]
 
 
+@pytest.mark.parametrize("front_y, between", [(4.0, False), (-1.0, True)])
+def test_a_car_beside_the_lead_is_not_between_it_and_the_ego(front_y, between):
+    """Helsinki seed 1, at a red: scv7 stood in the next lane beside the lead, its rear angled into the ego's
+    path, and was the ego's leader at 0-1 m for 20 s: the ego still follows the lead (no car fits between
+    them), no cut-in. The same car with its front behind the lead's rear is between them."""
+    sim = fake_sim(gap_m=6.0, ego_speed=0.0)  # the lead's rear 6 m ahead of the ego's front (y = 0)
+    # scv7 in the next lane, its nose turned out (rear 0.8 m off the ego's path), front at y = 6 + front_y
+    w = sim.world
+    car = w.add("scv7")
+    w.x_m[car], w.y_m[car], w.heading_deg[car], w.length_m[car] = 2.5, front_y + 6.0, 20.0, 5.0
+    sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -20.0), (0.0, 200.0)]), 20.0
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(w)
+    assert lead.lead_is_leader
+    w.t_s = 1.0
+    sim.ego.sees("scv7")
+    lead.step(w)
+    assert lead.lead_is_leader is not between
+    assert [e.vehicle for e in sim.events if e.kind == "lead_cut_in"] == (["scv7"] if between else [])
+
+
 def test_every_car_between_the_lead_and_the_ego_is_sent_off_not_only_the_egos_leader():
     """Monaco -166149542#0: three priority cars came in while the participant waited at the line; sending
     only its leader off, the two ahead of it stayed between the lead and the ego for the rest of the phase."""
