@@ -26,7 +26,14 @@ from cosim.scenario.signs import SIGN_KINDS, derive_signs, write_signs
 from cosim.sumo_bridge.network import read_network
 from cosim.sumo_bridge.tools import summarise_warnings, sumo_version
 
-CACHE_FORMAT = 27  # bump when the outputs of a build change for the same inputs
+CACHE_FORMAT = 27  # bump when the layout of the cached files changes
+# the code a build runs: any change to it builds anew. A number bumped by hand was not enough: a change tried
+# and reverted under one number left its networks in the cache for the next change that took that number
+PIPELINE_SOURCES = (
+    *sorted((Path(__file__).parent).glob("*.py")),
+    Path(__file__).parents[1] / "sumo_bridge" / "network.py",
+    Path(__file__).parents[1] / "sumo_bridge" / "tools.py",
+)
 NETWORK_FILES = ("network.net.xml", "buildings.poly.xml", "signs.add.xml", "network.json", "netconvert.log")
 SCENARIO_FILES = (*NETWORK_FILES, "routes.rou.xml", "scenario.sumocfg", "report.json")
 
@@ -67,12 +74,21 @@ def _key(*parts) -> str:
     return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()[:24]
 
 
+def pipeline_digest() -> str:
+    """sha256 over the source of the scenario pipeline (``PIPELINE_SOURCES``)."""
+    h = hashlib.sha256()
+    for path in PIPELINE_SOURCES:
+        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
 def _network_key(osm_sha: str, behaviour: ScvBehaviour) -> str:
     option_files = sorted((p.name, _sha256(p)) for p in OPTIONS_DIR.iterdir())
     net_relevant = behaviour.give_way_approach_speed_kmh
     return _key(
-        CACHE_FORMAT, osm_sha, option_files, pass1_options(Path("X"), Path("Y")), net_relevant, sumo_version()
-    )
+        CACHE_FORMAT, pipeline_digest(), osm_sha, option_files, pass1_options(Path("X"), Path("Y")), net_relevant,
+        sumo_version(),
+    )  # fmt: skip
 
 
 def _publish(tmp: Path, final: Path) -> None:
