@@ -412,7 +412,10 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
     for both directions cut the same corner: Monaco cluster_1737147129_21914841, 0.83 m apart over 20 m;
     Helsinki cluster_4435014125_4435014127, 1.46 m) are therefore never kept apart, even when they are foes,
     and with ``collision.check-junctions`` every meeting there is a collision. The shapes are pushed apart
-    symmetrically (the ends stay on their lanes) until their centre lines are ``clearance_m`` apart.
+    symmetrically (the ends stay on their lanes) until their centre lines are ``clearance_m`` apart; a shape
+    that a further push would make cross itself stays where it is (Monaco 258068679: a left turn that dips
+    4 m south and comes back, pushed on, looped back over its own start beside the straight movement of the
+    same lane, and SUMO, which never makes two movements of one lane foes, let both go: 2 SCV collisions).
     Returns the connection lines and a list of (junction, connection, connection, distance before, after).
     """
     import numpy as np
@@ -452,6 +455,8 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
                  and (id(a) in involved or id(b) in involved)
                  and not shapely.LineString(orig[id(a)]).intersects(shapely.LineString(orig[id(b)]))]  # fmt: skip
         kernel = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
+        # shapes that stop moving: another push would make them cross themselves (or netconvert's already do)
+        frozen = {k for k in involved if not shapely.LineString(orig[k]).is_simple}
         for _ in range(rounds):
             disp = {k: np.zeros_like(v) for k, v in cur.items()}
             worst = clearance_m
@@ -469,22 +474,33 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
             if worst >= clearance_m - 0.05:
                 break
             for k, dv in disp.items():
-                if not dv.any():
+                if not dv.any() or k in frozen:
                     continue
                 pts = cur[k]
                 s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
                 taper = np.clip(np.minimum(s, s[-1] - s) / 1.5, 0.0, 1.0)[:, None]
                 smooth = np.column_stack([np.convolve(np.pad(dv[:, i], 2, mode="edge"), kernel, "valid")
                                           for i in range(2)])  # fmt: skip
-                cur[k] = pts + 0.5 * smooth * taper
+                moved = pts + 0.5 * smooth * taper
+                if not shapely.LineString(moved).is_simple:
+                    frozen.add(k)  # pushed on, it would loop over itself: it stays as it is now
+                    continue
+                cur[k] = moved
         by_id = {id(c): c for c in unique}
         for k in sorted(involved, key=lambda k: (by_id[k].from_lane, by_id[k].to_lane)):
             moved = float(np.hypot(*(cur[k] - orig[k]).T).max())
             if moved < 0.05:
                 continue
             c = by_id[k]
-            simple = shapely.LineString(cur[k]).simplify(0.05)
-            shape = " ".join(f"{x:.2f},{y:.2f}" for x, y in simple.coords)
+            # as written (simplified, to the centimetre), a tight bend can fold over itself: then less
+            # simplified, or not at all (netconvert's shape stays)
+            for line in (shapely.LineString(cur[k]).simplify(0.05), shapely.LineString(cur[k])):
+                coords = [(round(x, 2), round(y, 2)) for x, y in line.coords]
+                if shapely.LineString(coords).is_simple:
+                    break
+            else:
+                continue
+            shape = " ".join(f"{x:.2f},{y:.2f}" for x, y in coords)
             lines.append(
                 f"    <connection from={quoteattr(c.from_edge)} to={quoteattr(c.to_edge)} "
                 f'fromLane="{c.from_lane.rsplit("_", 1)[1]}" toLane="{c.to_lane.rsplit("_", 1)[1]}" '
