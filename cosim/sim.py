@@ -119,6 +119,7 @@ class Simulation:
         self.lead = None  # the LeadVehicle of the following task
         self.route = None  # the EgoRoute: the ego's (and the lead's) route, extended as they drive
         self.traffic = None  # TrafficAroundEgo when the scenario's traffic is generated around the ego
+        self.impatience = None  # QueueHeadImpatience: SUMO's drivers keep their impatience while they creep
         self.stats = {"teleports": 0, "collisions": 0, "ego_off_road": 0, "steps": 0}
         self.health: DriveHealth | None = None
         self.recorder = None  # the log phase (cosim.log.recorder) when there is a log
@@ -170,6 +171,10 @@ class Simulation:
                                                     rng=stream(config.seed, "traffic"), step_s=self.step_s,
                                                     bridge=self.bridge)  # fmt: skip
                     self.stats.update(scv_generated=0, scv_removed=0)
+            from cosim.phases.impatience import QueueHeadImpatience
+
+            self.impatience = QueueHeadImpatience(self.bridge, time_to_impatience_s=self.bridge.time_to_impatience_s(),
+                                                  step_s=self.step_s)  # fmt: skip
             self.health = DriveHealth(config.ego, self.step_s)  # scheduled after the ego's phases: it reads
             # what they decided
             if self.mcap is not None:
@@ -315,6 +320,7 @@ class Simulation:
         if self.ego is not None:
             s.append(("ego", self._ego_integrate))  # ego: MuJoCo integrates the car over the SUMO step
             s.append(("writeback", self._ego_write_back))  # writeback: the ego's pose into SUMO
+        s.append(("writeback", self._impatience_step))  # SUMO's queue heads: impatience held while they creep
         if self.traffic is not None:
             s.append(("writeback", self._traffic_step))  # SCVs generated and removed around the ego
         if self.health is not None:
@@ -377,6 +383,9 @@ class Simulation:
             self.current.log["/adas/state"] = out.record
             if out.events is not None:
                 self.current.log["/adas/events"] = out.events
+
+    def _impatience_step(self, sim) -> None:
+        self.impatience.step(self.world)
 
     def _traffic_step(self, sim) -> None:
         self.traffic.step(self.world)

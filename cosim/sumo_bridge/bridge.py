@@ -479,6 +479,19 @@ class SumoBridge:
         it back to SUMO's own driving."""
         self._sumo.vehicle.setSpeed(vid, -1.0 if speed_mps is None else max(0.0, speed_mps))
 
+    def set_impatience(self, vid: str, impatience: float) -> None:
+        """The vehicle's impatience at junctions until it drives off (SUMO then clears it)."""
+        self._sumo.vehicle.setImpatience(vid, impatience)
+
+    def time_to_impatience_s(self) -> float:
+        """The run's ``--time-to-impatience`` [s] (the scenario's sumocfg sets it)."""
+        return float(self._sumo.simulation.getOption("time-to-impatience"))
+
+    def lane_end(self, edge_id: str, lane_index: int) -> tuple[float, float]:
+        """Where a lane ends (its stop line at a junction) [m]."""
+        x, y = self._sumo.lane.getShape(f"{edge_id}_{lane_index}")[-1][:2]
+        return float(x), float(y)
+
     def lane_speed_limit(self, vid: str) -> float:
         """The speed the vehicle may drive on its lane (limit x its speed factor) [m/s]."""
         return self._sumo.vehicle.getAllowedSpeed(vid)
