@@ -11,8 +11,9 @@ Albert 1er (25193333): the head stood 240 s with its waiting time never above 29
 and the lead stood behind it for 180 s; with impatience 1 it merged within 3 s.
 
 Here the wait is clocked as the time a car has stood or crept (below ``CREEP_MPS``) within ``HEAD_M`` of
-the end of the same lane, and handed to SUMO each step as its impatience (libsumo ``setImpatience``: a
-per-vehicle value that SUMO clears when the car drives off). A car that is never held up keeps SUMO's own
+the end of the same lane, and handed to SUMO as its impatience (libsumo ``setImpatience``: a per-vehicle
+offset that SUMO clears when the car drives off). While the car stands, SUMO's clock runs with this one, so
+the value is handed over again only after SUMO has cleared it (the car rolled faster than 0.1 m/s). A car that is never held up keeps SUMO's own
 impatience; the participant's twin is cosim's (``cosim.driver`` has its own gap acceptance).
 """
 
@@ -31,6 +32,8 @@ HEAD_M = 7.5
 CREEP_MPS = 1.0
 # below this wait SUMO's own clock agrees with this one (no creep yet): no call
 MIN_WAIT_S = 5.0
+# SUMO counts a car as waiting below this speed (SUMO_const_haltingSpeed); faster, it clears the value set
+HALTING_MPS = 0.1
 
 
 class ImpatienceBridge(Protocol):
@@ -49,6 +52,7 @@ class QueueHeadImpatience:
         self.step_s = step_s
         self.wait_s = np.zeros(0)  # per slot: the clock above
         self.code = np.zeros(0, np.int64)  # per slot: edge code * 64 + lane index it was clocked on
+        self.synced = np.zeros(0, dtype=bool)  # per slot: SUMO holds the impatience handed over last
         self._end_x = np.zeros(0)  # per lane key: its end [m] (nan: not looked up yet)
         self._end_y = np.zeros(0)
         self.raised = 0
@@ -71,6 +75,7 @@ class QueueHeadImpatience:
         if self.wait_s.size < w.capacity:
             self.wait_s = np.concatenate([self.wait_s, np.zeros(w.capacity - self.wait_s.size)])
             self.code = np.concatenate([self.code, np.full(w.capacity - self.code.size, -1, np.int64)])
+            self.synced = np.concatenate([self.synced, np.zeros(w.capacity - self.synced.size, dtype=bool)])
         slots, ids = w.live()
         on_lane = (w.edge_code[slots] >= 0) & (w.lane_index[slots] >= 0) & ~w.is_ego[slots]
         slow = on_lane & (w.speed_mps[slots] < CREEP_MPS)
@@ -82,8 +87,11 @@ class QueueHeadImpatience:
         same = (key == self.code[slots]) & (w.depart_step[slots] != w.step)
         self.wait_s[slots] = np.where(head & same, self.wait_s[slots] + self.step_s, 0.0)
         self.code[slots] = np.where(head, key, -1)
-        for i in np.flatnonzero(self.wait_s[slots] >= MIN_WAIT_S).tolist():
+        synced = self.synced[slots] & head & same & (w.speed_mps[slots] < HALTING_MPS)
+        due = (self.wait_s[slots] >= MIN_WAIT_S) & ~synced
+        for i in np.flatnonzero(due).tolist():
             self.bridge.set_impatience(
                 ids[i], min(1.0, float(self.wait_s[slots[i]]) / self.time_to_impatience_s)
             )
             self.raised += 1
+        self.synced[slots] = synced | due

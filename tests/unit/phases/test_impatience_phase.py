@@ -51,13 +51,18 @@ def test_a_head_that_creeps_grows_impatient_as_if_it_had_stood():
     cars = {"head": 99.0, "second": 91.0, EGO_ID: 99.0}
     w = _world(cars)
     # 40 s at the stop line; every 3 s the head rolls 2 cm at 0.2 m/s (SUMO's own waiting time restarts)
+    creeps = []
     for k in range(400):
         creep = k % 30 == 0
         _step(w, phase, {"head": (99.0 + 0.02 * (k // 30), 0.2 if creep else 0.0), "second": (91.0, 0.0),
                          EGO_ID: (99.0, 0.0)})  # fmt: skip
+        if creep and k * STEP_S >= MIN_WAIT_S:
+            creeps.append(k * STEP_S)
     got = bridge.set["head"]
+    # handed over once the wait reaches MIN_WAIT_S, then again after each creep (SUMO cleared it), each
+    # time the whole wait so far, not the seconds since the last creep
     assert got[0] == pytest.approx(MIN_WAIT_S / TTI_S, abs=0.01)
-    assert got[-1] == pytest.approx(40.0 / TTI_S, abs=0.01)  # the whole wait, not the 3 s since a creep
+    assert got[1:] == pytest.approx([t / TTI_S for t in creeps], abs=0.01)
     # the car behind it is not at the stop line, and the participant's twin is never SUMO's to hurry
     assert "second" not in bridge.set and EGO_ID not in bridge.set
     assert 91.0 < 100.0 - HEAD_M
@@ -67,9 +72,10 @@ def test_the_clock_stops_when_the_car_drives_off_or_enters_the_junction():
     bridge = FakeBridge()
     phase = QueueHeadImpatience(bridge, time_to_impatience_s=TTI_S, step_s=STEP_S)
     w = _world({"a": 99.0})
-    for _ in range(100):  # 10 s standing
+    for _ in range(100):  # 10 s standing: handed over once, SUMO's clock runs on with it
         _step(w, phase, {"a": (99.0, 0.0)})
     n = len(bridge.set["a"])
+    assert n == 1
     _step(w, phase, {"a": (99.2, 2.0)})  # drives off: no call, the clock restarts
     _step(w, phase, {"a": (99.0, 0.0)})
     assert len(bridge.set["a"]) == n
@@ -87,6 +93,6 @@ def test_impatience_is_capped_at_one():
     bridge = FakeBridge()
     phase = QueueHeadImpatience(bridge, time_to_impatience_s=10.0, step_s=STEP_S)
     w = _world({"a": 99.0})
-    for _ in range(300):
-        _step(w, phase, {"a": (99.0, 0.0)})
-    assert max(bridge.set["a"]) == 1.0
+    for k in range(300):  # creeping every 10 s
+        _step(w, phase, {"a": (99.0, 0.2 if k % 100 == 99 else 0.0)})
+    assert bridge.set["a"][-1] == 1.0
