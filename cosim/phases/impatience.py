@@ -12,9 +12,10 @@ and the lead stood behind it for 180 s; with impatience 1 it merged within 3 s.
 
 Here the wait is clocked as the time a car has stood or crept (below ``CREEP_MPS``) within ``HEAD_M`` of
 the end of the same lane, and handed to SUMO as its impatience (libsumo ``setImpatience``: a per-vehicle
-offset that SUMO clears when the car drives off). While the car stands, SUMO's clock runs with this one, so
-the value is handed over again only after SUMO has cleared it (the car rolled faster than 0.1 m/s). A car that is never held up keeps SUMO's own
-impatience; the participant's twin is cosim's (``cosim.driver`` has its own gap acceptance).
+offset that SUMO clears when the car drives off). While the car stands, SUMO's clock runs with this one,
+so the value is handed over again only after SUMO has cleared it (the car rolled faster than
+``HALTING_MPS``). A car that is never held up keeps SUMO's own impatience; the participant's twin is
+cosim's (``cosim.driver`` has its own gap acceptance).
 """
 
 from __future__ import annotations
@@ -25,15 +26,15 @@ import numpy as np
 
 from cosim.world import World
 
-# a queue head stands at most jmStoplineGap (6 m at a light, cosim.scenario.demand) before the end of its
+# a queue head stands at most jmStoplineGap (6 m at a light, cosim.scenario.behaviour) before the end of its
 # lane; the car behind it at least one car length and a minimum gap (5 + 2.5 m) farther
 HEAD_M = 7.5
-# SUMO's waiting time stops at 0.1 m/s (SUMO_const_haltingSpeed); a creep to a closing gap stays below this
-CREEP_MPS = 1.0
-# below this wait SUMO's own clock agrees with this one (no creep yet): no call
-MIN_WAIT_S = 5.0
 # SUMO counts a car as waiting below this speed (SUMO_const_haltingSpeed); faster, it clears the value set
 HALTING_MPS = 0.1
+# a creep towards a gap that closes again stays below this
+CREEP_MPS = 1.0
+# shorter waits are left to SUMO's own clock: no call
+MIN_WAIT_S = 5.0
 
 
 class ImpatienceBridge(Protocol):
