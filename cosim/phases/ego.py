@@ -44,6 +44,8 @@ ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is cert
 # driver cutting a corner or drifting within a lane width of the path has not left it (Munich seed 1:
 # 2.1 m off the path in a right turn, the twin mapped freely onto the crossing road hit scv98 there)
 ON_ROUTE_M = 3.5
+# ... except within this of a junction the route passes a second time (``_in_junction_passed_before``) [m]
+REPASS_MARGIN_M = 5.0
 LEAD_BESIDE_M = 5.0  # the lead's rear this close to the path's centre line is ahead of the ego, in its lane or the next [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
@@ -200,6 +202,8 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
+        self._repassed: list[tuple[float, float]] = []  # arc spans of junctions the route passes again ...
+        self._repassed_for = None  # ... on this path
         # waiting for a gap: (route index of the lane change's edge, since [s])
         self._merge_held: tuple[int, float] | None = None
         # the car letting the ego in: (its id, since [s], route index of the lane change's edge)
@@ -595,7 +599,8 @@ class EgoController:
         # on its own path and mapped to a lane by SUMO: no need to search the network for the road
         mapped = p is not None and slot is not None and w.edge_code[slot] >= 0
         suspicious = not mapped or abs(p.lateral_error_m) > ON_PATH_M
-        on_route = self._on_sumo_route and mapped and abs(p.lateral_error_m) <= ON_ROUTE_M
+        on_route = (self._on_sumo_route and mapped and abs(p.lateral_error_m) <= ON_ROUTE_M
+                    and not self._in_junction_passed_before(self.s_front_m))  # fmt: skip
         if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
             x, y = self._new_lane.onto_new_lane(x, y)
         ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route)
@@ -615,6 +620,28 @@ class EgoController:
             "junction_gap_s": round(p.junction_gap_s, 2) if p and math.isfinite(p.junction_gap_s) else None,
             "driver_mode": getattr(getattr(self.driver, "debug", None), "mode", ""),
         }  # fmt: skip
+
+    def _in_junction_passed_before(self, s_front: float | None) -> bool:
+        """Whether the ego's front is in (or within REPASS_MARGIN_M of) a junction its route has passed
+        before by another movement. There SUMO's on-route mapping (keepRoute=1) also matches the pose onto
+        the earlier movement's internal lanes, since the route SUMO holds keeps the edges driven (and a
+        replaced route keeps them too): Krems 71582001, make experiment P3, the twin was put onto the
+        earlier left turn's :71582001_24_0, 1.33 m away, instead of its own lane 0.13 m away, flipped
+        between the two every step, and SUMO moved scv677 from the parallel lane onto the ego. The free
+        mapping (keepRoute=2) takes the nearest lane in the pose's heading: its own."""
+        if s_front is None:
+            return False
+        path = self.path
+        if self._repassed_for is not path:
+            seen: set[str] = set()
+            spans = []
+            ends = [a for a, _b, _e, _l in path.edge_lanes[1:]]  # where the path is on the next edge
+            for stop in path.stop_lines:
+                if stop.junction in seen and 0 <= stop.edge_index < len(ends):
+                    spans.append((stop.s_m - REPASS_MARGIN_M, ends[stop.edge_index] + REPASS_MARGIN_M))
+                seen.add(stop.junction)
+            self._repassed, self._repassed_for = spans, path
+        return any(a <= s_front <= b for a, b in self._repassed)
 
     def close(self) -> None:
         pass

@@ -619,3 +619,20 @@ def test_a_cut_corner_keeps_the_twin_on_its_route_and_only_leaving_the_road_lets
         d.step()
         assert abs(d.ego.percept.lateral_error_m) == pytest.approx(offset, abs=0.3)
         assert d.bridge.writes[-1]["on_route"] is on_route and d.bridge.writes[-1]["verify"]
+
+
+def test_sumo_maps_the_twin_freely_in_a_junction_the_route_passes_a_second_time():
+    """SUMO's on-route mapping also matches the pose onto movements of the route's earlier passes (its
+    route keeps the edges driven): in a junction passed before, the twin is mapped freely (Krems 71582001)."""
+    d = Drive()
+    stop = dict(state="M", xy=(0.0, 0.0))
+    d.ego.path = RoutePath(
+        [(0.0, 0.0), (0.0, 800.0)],
+        [StopLine(200.0, "J", edge_index=0, **stop), StopLine(400.0, "K", edge_index=1, **stop),
+         StopLine(600.0, "J", edge_index=2, **stop)],
+        edge_lanes=[(0.0, 200.0, "a", 0), (212.0, 400.0, "b", 0), (412.0, 600.0, "c", 0), (612.0, 800.0, "d", 0)],
+    )  # fmt: skip
+    passed_before = d.ego._in_junction_passed_before
+    assert not any(passed_before(s) for s in (190.0, 205.0, 300.0, 405.0, 500.0))  # first passes
+    assert all(passed_before(s) for s in (596.0, 600.0, 606.0, 616.0))  # J again, and 5 m either side
+    assert not passed_before(700.0) and not passed_before(None)
