@@ -624,11 +624,11 @@ class EgoController:
     def _in_junction_passed_before(self, s_front: float | None) -> bool:
         """Whether the ego's front is in (or within REPASS_MARGIN_M of) a junction its route has passed
         before. There SUMO's on-route mapping (keepRoute=1) also matches the pose onto the internal lanes of
-        the earlier pass, since the route SUMO holds keeps the edges driven (and a
-        replaced route keeps them too): Krems 71582001, make experiment P3, the twin was put onto the
-        earlier left turn's :71582001_24_0, 1.33 m away, instead of its own lane 0.13 m away, flipped
-        between the two every step, and SUMO moved scv677 from the parallel lane onto the ego. The free
-        mapping (keepRoute=2) takes the nearest lane in the pose's heading: its own."""
+        the earlier pass, since the route SUMO holds keeps the edges driven (and a replaced route keeps them
+        too): Krems 71582001, make experiment P3, the twin was put onto the earlier left turn's
+        :71582001_24_0, 1.33 m away, instead of its own lane 0.13 m away, flipped between the two every
+        step, and SUMO moved scv677 from the parallel lane onto the ego. The free mapping (keepRoute=2)
+        takes the nearest lane in the pose's heading: its own."""
         if s_front is None:
             return False
         path = self.path
