@@ -138,9 +138,11 @@ class EgoPhysics(Protocol):
 
 
 class RouteExtension(Protocol):
-    """The route's extension (``cosim.phases.route.EgoRoute``): True when it appended edges."""
+    """The route as it is extended and re-planned (``cosim.phases.route.EgoRoute``): given what is left
+    ahead of the ego, the route index of its edge and the metres left on that edge, returns the first route
+    index whose edge changed (None: unchanged)."""
 
-    def extend_if_short(self, ahead_m: float) -> bool: ...
+    def update(self, ahead_m: float, ego_index: int, ego_edge_left_m: float) -> int | None: ...
 
 
 def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: float) -> float:
@@ -239,8 +241,12 @@ class EgoController:
         s_c, _ = self.path.project(cx, cy)
         s_front = s_c + 0.5 * self.car.params.length_m
         self.s_front_m = s_front
-        if self.extension is not None and self.extension.extend_if_short(self.path.length_m - s_front):
-            self._rebuild_path()
+        if self.extension is not None:
+            k = self.path.edge_index(s_front)
+            left = max(0.0, self.path.edge_lanes[k][1] - s_front) if k < len(self.path.edge_lanes) else 0.0
+            changed = self.extension.update(self.path.length_m - s_front, k, left)
+            if changed is not None:
+                self._route_changed(changed)
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
@@ -571,6 +577,18 @@ class EgoController:
                     kw["junction_gap_s"] = priority_gap_s(w, self.bridge, EGO_ID, dist)
                 break
         return kw
+
+    def _route_changed(self, first: int) -> None:
+        """The route's edges from index ``first`` on are new (extended, or a way round a stalled queue):
+        what was planned for the old ones goes, SUMO gets the new stretch, the path is built again."""
+        self._change_delays = {i: m for i, m in self._change_delays.items() if i < first}
+        if self._merge_held is not None and self._merge_held[0] >= first:
+            self._merge_held = None
+        if self._let_in is not None and self._let_in[2] >= first:
+            self._let_in = None
+        if self._sumo_route_end is None or self._sumo_route_end > first:
+            self._sumo_route_end = 0  # SUMO holds edges that are no longer the route: give it the new ones
+        self._rebuild_path()
 
     def _rebuild_path(self) -> None:
         """The route was extended or a lane change put off: the path again from the whole route, the

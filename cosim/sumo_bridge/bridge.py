@@ -399,6 +399,44 @@ class SumoBridge:
             return False
         return True
 
+    def replace_route(self, vid: str, edges: list[str]) -> bool:
+        """Give ``vid`` the route ``edges`` (``edges[0]`` its current route edge); False when SUMO refused."""
+        try:
+            self._sumo.vehicle.setRoute(vid, edges)
+        except Exception:  # libsumo.TraCIException
+            return False
+        return True
+
+    def route_edge_left(self, vid: str) -> tuple[str, float]:
+        """(the edge of its route ``vid`` is on or has just left for a junction, metres left on it: 0 in the
+        junction)."""
+        veh = self._sumo.vehicle
+        edge = veh.getRoute(vid)[max(veh.getRouteIndex(vid), 0)]
+        if veh.getRoadID(vid) != edge:
+            return edge, 0.0
+        return edge, self._sumo.lane.getLength(veh.getLaneID(vid)) - veh.getLanePosition(vid)
+
+    def queue_heads(self, edge: str, next_edge: str) -> list[tuple[int, float]]:
+        """Per lane of ``edge`` with a connection onto ``next_edge``: (vehicles halting on it, the time its
+        front vehicle has waited within SUMO's waiting-time memory [s]: creeping does not restart it)."""
+        lane_api = self._sumo.lane
+        out = []
+        for i in range(self._sumo.edge.getLaneNumber(edge)):
+            lane = f"{edge}_{i}"
+            if not any(link[0].rsplit("_", 1)[0] == next_edge for link in lane_api.getLinks(lane)):
+                continue
+            ids = lane_api.getLastStepVehicleIDs(lane)  # back to front
+            wait = self._sumo.vehicle.getAccumulatedWaitingTime(ids[-1]) if ids else 0.0
+            out.append((lane_api.getLastStepHaltingNumber(lane), wait))
+        return out
+
+    def weigh_edges(self, travel_time_s: dict[str, float], hold_s: float) -> None:
+        """SUMO's router (``find_route``) takes these travel times for routes entering the edges within the
+        next ``hold_s`` seconds (global edge weights; SCVs' rerouting devices keep their own)."""
+        t = self._sumo.simulation.getTime()
+        for edge, tt in travel_time_s.items():
+            self._sumo.edge.adaptTraveltime(edge, tt, t, t + hold_s)
+
     def divert(
         self, vid: str, keep_off: set[str], min_ahead_m: float, continue_m: float = 300.0
     ) -> str | None:

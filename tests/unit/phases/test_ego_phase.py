@@ -222,12 +222,12 @@ def test_an_extended_route_rebuilds_the_path_and_sumo_gets_the_new_stretch():
         def __init__(self, route):
             self.route, self.asked = route, []
 
-        def extend_if_short(self, ahead_m):
+        def update(self, ahead_m, ego_index, ego_edge_left_m):
             self.asked.append(ahead_m)
             if len(self.asked) == 2:
                 self.route += ["d", "e", "f", "g"]  # in place: the list is shared
-                return True
-            return False
+                return 3  # the first new route index
+            return None
 
     d = Drive(extension=None)
     ext = Extension(d.route)
@@ -241,6 +241,27 @@ def test_an_extended_route_rebuilds_the_path_and_sumo_gets_the_new_stretch():
     d.bridge.held = 1  # ... or SUMO replaced it: then it ends 800 m ahead, not with the whole route
     d.step()
     assert d.bridge.given[-1] == ["a", "b", "c", "d", "e"]
+
+
+def test_a_route_replanned_inside_the_stretch_sumo_holds_is_given_to_sumo_at_once():
+    class Replan:
+        def __init__(self, route):
+            self.route, self.calls = route, 0
+
+        def update(self, ahead_m, ego_index, ego_edge_left_m):
+            self.calls += 1
+            if self.calls == 2:
+                self.route[1:] = ["x", "y"]  # a way round from the end of "a" on
+                return 1
+            return None
+
+    d = Drive(extension=None)
+    d.ego.extension = Replan(d.route)
+    d.place()
+    d.step()
+    assert d.bridge.given == [["a", "b", "c"]]
+    d.step()
+    assert d.paths[-1] == ["a", "x", "y"] and d.bridge.given[-1] == ["a", "x", "y"]
 
 
 def test_a_route_sumo_replaced_is_given_again_and_a_refusal_is_an_event():

@@ -4,7 +4,18 @@ from __future__ import annotations
 
 import math
 
-from cosim.phases.route import EXTEND_AHEAD_M, RETRY_S, EgoRoute
+import pytest
+
+from cosim.phases import route as route_phase
+from cosim.phases.route import (
+    COMMIT_M,
+    EXTEND_AHEAD_M,
+    REPLAN_EVERY_S,
+    RETRY_S,
+    STALL_HEADWAY_S,
+    STALL_WAIT_S,
+    EgoRoute,
+)
 from cosim.seeds import stream
 from cosim.world import LEAD_ID, World
 
@@ -23,6 +34,9 @@ class FakeEdge:
 
     def getLength(self):
         return math.dist(*self._shape)
+
+    def getSpeed(self):
+        return 13.89
 
     def getShape(self):
         return self._shape
@@ -51,6 +65,12 @@ class FakeBridge:
         i, j = int(origin[1:]), int(destination[1:])
         return [f"e{(i + n) % N}" for n in range((j - i) % N + 1)]
 
+    def route_edge_left(self, vid: str) -> tuple[str, float]:
+        return "e0", 0.0
+
+    def queue_heads(self, edge: str, next_edge: str) -> list[tuple[int, float]]:
+        return []  # the ring never jams
+
     def extend_route(self, vid: str, edges: list[str]) -> bool:
         assert vid == LEAD_ID
         if self.accept:
@@ -77,7 +97,7 @@ def test_a_leg_is_appended_only_when_the_road_ahead_runs_short_and_the_lead_gets
     w.add(LEAD_ID)
     r, events, calls = _route(bridge, world=w)
     assert not r.step(EXTEND_AHEAD_M + 1.0) and not calls  # the network is not even looked at
-    assert r.extend_if_short(100.0)  # the ego's controller calls it by this name
+    assert r.update(100.0, 0, 10.0) == 2  # the ego's controller calls it by this name: the first new index
     assert len(calls) == 1 and r.extensions == 1 and len(r.edges) >= 4
     new = r.edges[2:]
     assert all(int(b[1:]) == (int(a[1:]) + 1) % N for a, b in zip(r.edges, r.edges[1:], strict=False))
@@ -109,3 +129,149 @@ def test_without_a_lead_only_the_egos_route_grows():
     bridge = FakeBridge()
     r, _, _ = _route(bridge, lead=False)
     assert r.step(0.0) and bridge.lead_routes == []
+
+
+# --- a way round a stalled queue -----------------------------------------------------------------------------
+# e0 -> e1 -> e2 -> e3 -> e4 along the x axis; from the end of e1 a way round e2: x1 north, x2 east, x3 south
+# back to the start of e3 (turns of 90 deg, never a hairpin). 10 m/s everywhere.
+class StraightEdge:
+    def __init__(self, eid: str, a: tuple[float, float], b: tuple[float, float]):
+        self.eid, self._shape, self.outgoing = eid, [a, b], []
+
+    def getID(self):
+        return self.eid
+
+    def getLength(self):
+        return math.dist(*self._shape)
+
+    def getSpeed(self):
+        return 10.0
+
+    def getShape(self):
+        return self._shape
+
+    def getOutgoing(self):
+        return {e: [] for e in self.outgoing}
+
+
+def _grid():
+    pts = {"e0": ((0, 0), (200, 0)), "e1": ((200, 0), (300, 0)), "e2": ((300, 0), (400, 0)),
+           "e3": ((400, 0), (800, 0)), "e4": ((800, 0), (1200, 0)), "x1": ((300, 0), (300, 100)),
+           "x2": ((300, 100), (400, 100)), "x3": ((400, 100), (400, 0))}  # fmt: skip
+    edges = {k: StraightEdge(k, *v) for k, v in pts.items()}
+    for a, b in [("e0", "e1"), ("e1", "e2"), ("e2", "e3"), ("e3", "e4"), ("e1", "x1"), ("x1", "x2"),
+                 ("x2", "x3"), ("x3", "e3")]:  # fmt: skip
+        edges[a].outgoing.append(edges[b])
+    return list(edges.values())
+
+
+ROUND = ["e1", "x1", "x2", "x3", "e3"]
+
+
+class JamBridge:
+    """SUMO as the replanning sees it: the lead's place, the queues, a router that goes round e2 once e2 is
+    weighed, and the lead's route."""
+
+    def __init__(self, lead_edge="e0", lead_left_m=50.0, queues=None, accept=True):
+        self.lead_edge, self.lead_left_m = lead_edge, lead_left_m
+        self.queues = queues if queues is not None else {"e2": [(5, 80.0)]}
+        self.accept = accept
+        self.weights: dict[str, float] = {}
+        self.asked: list[tuple[str, str]] = []
+        self.replaced: list[tuple[str, list[str]]] = []
+        self.heads_asked = 0
+
+    def route_edge_left(self, vid):
+        assert vid == LEAD_ID
+        return self.lead_edge, self.lead_left_m
+
+    def queue_heads(self, edge, next_edge):
+        self.heads_asked += 1
+        return self.queues.get(edge, [(0, 0.0)])
+
+    def weigh_edges(self, travel_time_s, hold_s):
+        assert hold_s > 0
+        self.weights.update(travel_time_s)
+
+    def find_route(self, origin, destination):
+        self.asked.append((origin, destination))
+        straight = ["e0", "e1", "e2", "e3", "e4"]
+        if "e2" in self.weights and destination == "e3":
+            return straight[straight.index(origin) : 1] + ROUND if origin == "e0" else ROUND
+        return straight[straight.index(origin) : straight.index(destination) + 1]
+
+    def replace_route(self, vid, edges):
+        self.replaced.append((vid, list(edges)))
+        return self.accept
+
+    def extend_route(self, vid, edges):
+        return True
+
+
+def _jam_route(bridge, lead=True, t_s=REPLAN_EVERY_S):
+    w = World(capacity=4)
+    w.t_s = t_s
+    if lead:
+        w.add(LEAD_ID)
+    events = []
+    r = EgoRoute(["e0", "e1", "e2", "e3", "e4"], rng=stream(1, "route"), drivable_edges=_grid, bridge=bridge,
+                 world=w, emit=events.append, lead=lead)  # fmt: skip
+    return r, events
+
+
+def test_the_lead_takes_a_way_round_a_stalled_queue_and_gets_the_new_route_in_sumo():
+    bridge = JamBridge()
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) == 2  # the first route index whose edge changed
+    assert r.edges == ["e0", *ROUND, "e4"]
+    assert bridge.asked == [("e1", "e3")]  # 50 m left on e0 (< COMMIT_M): the route is left at the end of e1
+    assert bridge.weights == {"e2": pytest.approx(10.0 + 5 * STALL_HEADWAY_S)}  # the router sees the queue
+    assert bridge.replaced == [(LEAD_ID, r.edges)]  # from the lead's own edge on
+    (ev,) = events
+    assert ev.kind == "route_replanned" and ev.vehicle == LEAD_ID and "e2" in ev.detail
+    assert ev.value == pytest.approx((10 + 150 + 40) - (10 + 10 + 10 + 40))  # the time it saves [s]
+    assert r.replans == 1
+
+
+def test_with_room_to_turn_the_lead_leaves_the_route_at_the_end_of_its_own_edge():
+    bridge = JamBridge(lead_left_m=COMMIT_M + 1.0)
+    r, _ = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) == 1
+    assert bridge.asked == [("e0", "e3")] and r.edges == ["e0", *ROUND, "e4"]
+
+
+@pytest.mark.parametrize(
+    "queues",
+    [
+        {"e2": [(5, STALL_WAIT_S - 15.0)]},  # a queue at a red light: its front car waits less than a red
+        {"e2": [(1, 90.0)]},  # one car waiting is no queue
+        {"e2": [(5, 90.0), (0, 0.0)]},  # the other lane onward flows
+        {},  # nothing stalled
+    ],
+)
+def test_a_queue_that_moves_is_driven_through(queues):
+    bridge = JamBridge(queues=queues)
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) is None
+    assert r.edges == ["e0", "e1", "e2", "e3", "e4"] and not events and not bridge.replaced
+
+
+def test_the_route_stays_when_sumo_refuses_the_lead_or_the_way_round_saves_too_little(monkeypatch):
+    bridge = JamBridge(accept=False)
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) is None
+    assert r.edges == ["e0", "e1", "e2", "e3", "e4"] and not events
+    monkeypatch.setattr(route_phase, "REPLAN_GAIN_S", 200.0)  # the way round saves 130 s
+    bridge = JamBridge()
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) is None and not bridge.replaced and not events
+
+
+def test_it_looks_only_every_replan_interval_and_without_a_lead_the_ego_leads():
+    bridge = JamBridge()
+    r, _ = _jam_route(bridge, t_s=REPLAN_EVERY_S - 0.1)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) is None and bridge.heads_asked == 0
+    bridge = JamBridge()
+    r, events = _jam_route(bridge, lead=False)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 50.0) == 2  # the ego's own edge and metres left on it
+    assert r.edges == ["e0", *ROUND, "e4"] and not bridge.replaced and events[0].vehicle == "ego"
