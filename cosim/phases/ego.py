@@ -117,6 +117,8 @@ class EgoBridge(FoesBridge, Protocol):
 
     def edges_left(self, vid: str) -> int: ...
 
+    def route_edge_left(self, vid: str) -> tuple[str, float]: ...
+
     def set_ego_route(self, edges: list[str]) -> SumoEvent | None: ...
 
     def cap_speed(self, vid: str, speed_mps: float | None) -> None: ...
@@ -204,6 +206,7 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
+        self._route_renewed = False  # the route changed within what SUMO holds: SUMO must get it again
         self._repassed: list[tuple[float, float]] = []  # arc spans of junctions the route passes again ...
         self._repassed_for = None  # ... on this path
         # waiting for a gap: (route index of the lane change's edge, since [s])
@@ -295,21 +298,35 @@ class EgoController:
         held = self.bridge.edges_left(EGO_ID) in (expected, expected + 1)
         if (
             held
+            and not self._route_renewed
             and end is not None
             and (end == len(route) or self.path.limit_s[end] - s_front > 0.5 * SUMO_ROUTE_AHEAD_M)
         ):
             return True
         code = w.edge_code[slot]
-        if code < 0 or w.edge_names[code] != route[k]:
+        road = w.edge_names[code] if code >= 0 else ""
+        start = k if road == route[k] else self._start_in_junction(road, k)
+        if start is None:
             return held  # in a junction, or off the route: SUMO's route cannot start here
         end = self.path.edge_index(s_front + SUMO_ROUTE_AHEAD_M) + 1
-        ev = self.bridge.set_ego_route(route[k:end])
+        ev = self.bridge.set_ego_route(route[start:end])
         if ev:
             self.emit(ev)
             return False
         self._sumo_route_end = end
+        self._route_renewed = False
         self._tls_cache = None
         return True
+
+    def _start_in_junction(self, road: str, k: int) -> int | None:
+        """Where SUMO's route starts while the twin is in a junction (the edge it has just left: the path's
+        edge ``k`` or, with the front bumper already past the junction, the one before), when the route
+        changed ahead and SUMO must get it there (the twin may stand in a junction's queue for minutes);
+        None otherwise."""
+        if not road.startswith(":") or not self._route_renewed:  # SUMO's internal edges start with ':'
+            return None
+        current = self.bridge.route_edge_left(EGO_ID)[0]
+        return next((i for i in (k, k - 1) if i >= 0 and self.route[i] == current), None)
 
     def _next_tls(self, w: World, s_front: float):
         """SUMO's next light on the ego's way (a costly lookup): every step when it is near, otherwise once
@@ -587,7 +604,7 @@ class EgoController:
         if self._let_in is not None and self._let_in[2] >= first:
             self._let_in = None
         if self._sumo_route_end is None or self._sumo_route_end > first:
-            self._sumo_route_end = 0  # SUMO holds edges that are no longer the route: give it the new ones
+            self._route_renewed = True  # SUMO holds edges that are no longer the route: give it the new ones
         self._rebuild_path()
 
     def _rebuild_path(self) -> None:

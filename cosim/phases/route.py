@@ -11,8 +11,8 @@ queue on the route within ``JAM_LOOK_M`` (a queue whose front car has waited lon
 and where SUMO's router finds a way round it that is expected to save ``REPLAN_GAIN_S``, the route takes
 it: the ego's path, the ego's twin and the lead in SUMO all get the new edges (event ``route_replanned``).
 Without it the pair joined whatever queue SUMO's own traffic built on their way and stood in it for minutes
-(Monaco, seed 2: a side street whose merge into a busy arterial let one car in about every 75 s; a way
-round of the same length was 4 s longer at free flow).
+(Krems, seed 1, 300 s: the ego drove 547 m; with four ways round, 981 m).
+A queue that forms behind the lead, or one on the lead's own edge, it cannot go round.
 """
 
 from __future__ import annotations
@@ -35,15 +35,21 @@ JAM_LOOK_M = 600.0  # ... this far ahead of it [m]
 # the reds on the benchmark maps (45-57 s), so a queue at a light that clears each cycle is not one
 STALL_WAIT_S = 60.0
 STALL_MIN_HALTING = 2
-# the route's cost of a stalled queue: each car in it is assumed to get through no sooner than this. A
-# minor street merging into a stream of 1800 veh/h has an HCM 2010 potential capacity of ~70 veh/h, one
-# car in ~50 s (HCM 2010 eq. 19-32 with critical gap 6.9 s and follow-up time 3.3 s); 75 s was measured
+# the route's cost of a stalled queue: each car in it is costed this much, less than a saturated merge
+# takes (a minor street merging into 1800 veh/h: HCM 2010 potential capacity ~70 veh/h, eq. 19-32 with
+# critical gap 6.9 s and follow-up time 3.3 s, one car in ~50 s; 60-75 s measured at Monaco 25193333), so
+# the pair leaves its route only where the way round clearly saves time
 STALL_HEADWAY_S = 30.0
 REPLAN_GAIN_S = 30.0  # a way round is taken when it is expected to save this much [s]
 COMMIT_M = 100.0  # the route is left at the end of the lead's edge only with this much of it left (room
 #                   to change lanes for the new turn), otherwise at the end of the next edge [m]
 REJOIN_M = 300.0  # the way round joins the route again this far past the last stalled queue [m]
 JAM_HOLD_S = 300.0  # SUMO's router holds the stalled queue's cost for routes entering it this soon [s]
+LEAD_WITHIN_EDGES = 64  # the lead's edge is looked for this many route edges ahead of the ego's
+# a way round may not pass a junction twice within this many edges of it: a loop round the block back through
+# a junction the route passes again makes the twin's mapping onto the route ambiguous there
+# (``cosim.phases.ego``, ``REPASS_MARGIN_M``: SUMO then maps it freely, onto any lane nearby)
+LOOP_CONTEXT_EDGES = 3
 
 
 class RouteBridge(Protocol):
@@ -84,6 +90,10 @@ class EgoRoute:
         self._lead_pending: list[str] = []  # appended edges SUMO has not taken for the lead yet
         self._next_try_s = 0.0
         self._next_replan_s = REPLAN_EVERY_S
+        # stalled queues seen: edge -> (the route's cost of it [s], until when [s]); SUMO's router holds the
+        # same costs (weigh_edges), so a way round is judged as the router chose it, not against a queue
+        # forgotten since (the pair went round one queue, met another, and turned back into the first)
+        self._queued: dict[str, tuple[float, float]] = {}
         self.extensions = 0
         self.replans = 0
 
@@ -133,7 +143,7 @@ class EgoRoute:
         if LEAD_ID not in self.world.slot_of:
             return None
         edge, left = self.bridge.route_edge_left(LEAD_ID)
-        for i in range(ego_index, min(len(self.edges), ego_index + 64)):
+        for i in range(ego_index, min(len(self.edges), ego_index + LEAD_WITHIN_EDGES)):
             if self.edges[i] == edge:
                 return LEAD_ID, i, left
         return None
@@ -161,18 +171,20 @@ class EgoRoute:
                 if heads and all(n >= STALL_MIN_HALTING and wait >= STALL_WAIT_S for n, wait in heads):
                     stalled[j] = min(n for n, _ in heads) * STALL_HEADWAY_S
             ahead += chainer.length.get(edges[j], 0.0)
+        self._queued = {e: q for e, q in self._queued.items() if q[1] > t}
         if not stalled:
             return None
         r, past = max(stalled) + 1, 0.0
         while r < len(edges) - 1 and past + chainer.length.get(edges[r], 0.0) < REJOIN_M:
             past += chainer.length.get(edges[r], 0.0)
             r += 1
-        queued = {edges[j]: cost for j, cost in stalled.items()}
+        seen = {edges[j]: cost for j, cost in stalled.items()}
+        self._queued.update({e: (cost, t + JAM_HOLD_S) for e, cost in seen.items()})
+        self.bridge.weigh_edges({e: chainer.free_s.get(e, 0.0) + c for e, c in seen.items()}, JAM_HOLD_S)
 
         def cost(leg: list[str]) -> float:
-            return sum(chainer.free_s.get(e, 0.0) + queued.get(e, 0.0) for e in leg[1:])
+            return sum(chainer.free_s.get(e, 0.0) + self._queued.get(e, (0.0,))[0] for e in leg[1:])
 
-        self.bridge.weigh_edges({e: chainer.free_s.get(e, 0.0) + c for e, c in queued.items()}, JAM_HOLD_S)
         leg = self.bridge.find_route(edges[d], edges[r])
         old = edges[d : r + 1]
         if len(leg) < 2 or leg[0] != edges[d] or leg[-1] != edges[r] or leg == old or chainer.turns_back(leg):
@@ -181,12 +193,16 @@ class EgoRoute:
         if after + REPLAN_GAIN_S > before:
             return None
         route = [*edges[:d], *leg, *edges[r + 1 :]]
+        around = route[max(0, d - LOOP_CONTEXT_EDGES) : d + len(leg) + LOOP_CONTEXT_EDGES]
+        junctions = [chainer.to_node.get(e, e) for e in around]
+        if len(set(junctions)) < len(junctions):  # a loop back through a junction passed
+            return None
         if vid == LEAD_ID and not self.bridge.replace_route(LEAD_ID, route[i:]):
             return None
         edges[:] = route  # in place: shared with the ego's controller
         self._lead_pending = []
         self.replans += 1
-        self.emit(SumoEvent("route_replanned", vid, f"round a stalled queue on {', '.join(queued)}: "
+        self.emit(SumoEvent("route_replanned", vid, f"round a stalled queue on {', '.join(seen)}: "
                             f"{before:.0f} s -> {after:.0f} s", before - after))  # fmt: skip
         return d + 1
 

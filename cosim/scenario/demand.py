@@ -130,6 +130,7 @@ class RouteChainer:
     def __init__(self, comp: list):
         self.length = {e.getID(): e.getLength() for e in comp}
         self.free_s = {e.getID(): e.getLength() / max(e.getSpeed(), 1.0) for e in comp}  # at the limit [s]
+        self.to_node = {e.getID(): e.getToNode().getID() for e in comp}
         # heading at each end of an edge: a turn sharper than HAIRPIN_DEG (a U-turn, or a hairpin into a
         # parallel road that netconvert calls a left turn) makes the driver turn nearly on the spot
         self.head_in = {e.getID(): _heading(e.getShape()[-2], e.getShape()[-1]) for e in comp}

@@ -60,6 +60,7 @@ class FakeBridge:
         self.tls = None  # (id, link, dist, state)
         self.foes: list[tuple[str, float, float, float, bool]] = []
         self.held: int | None = None  # edges SUMO holds ahead; None: what the ego gave it
+        self.current_edge = ""  # the edge of its route SUMO has the twin on (or has just left)
         self.given: list[list[str]] = []
         self.reject_route = False
         self.writes: list[dict] = []
@@ -75,6 +76,9 @@ class FakeBridge:
 
     def edges_left(self, vid):
         return self.held if self.held is not None else len(self.given[-1]) if self.given else 0
+
+    def route_edge_left(self, vid):
+        return self.current_edge, 0.0
 
     def set_ego_route(self, edges):
         if self.reject_route:
@@ -262,6 +266,33 @@ def test_a_route_replanned_inside_the_stretch_sumo_holds_is_given_to_sumo_at_onc
     assert d.bridge.given == [["a", "b", "c"]]
     d.step()
     assert d.paths[-1] == ["a", "x", "y"] and d.bridge.given[-1] == ["a", "x", "y"]
+
+
+def test_a_route_replanned_while_the_twin_stands_in_a_junction_is_given_from_the_edge_it_left():
+    class Replan:
+        def __init__(self, route):
+            self.route, self.calls = route, 0
+
+        def update(self, ahead_m, ego_index, ego_edge_left_m):
+            self.calls += 1
+            if self.calls == 2:
+                self.route[2:] = ["x"]
+                return 2
+            return None
+
+    d = Drive(extension=None)
+    d.ego.extension = Replan(d.route)
+    slot = d.place()
+    d.step()
+    assert d.bridge.given == [["a", "b", "c"]]
+    d.world.edge_code[slot] = d.world.intern_edge(":J_0")  # the twin stands in the junction after "a"
+    d.bridge.current_edge = "b"  # SUMO's route is not at the path's edge: nothing is given
+    d.step()
+    assert d.bridge.given == [["a", "b", "c"]]
+    d.world.edge_code[slot] = d.world.intern_edge(":J_0")
+    d.bridge.current_edge = "a"
+    d.step()
+    assert d.bridge.given[-1] == ["a", "b", "x"]
 
 
 def test_a_route_sumo_replaced_is_given_again_and_a_refusal_is_an_event():

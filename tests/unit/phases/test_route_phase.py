@@ -22,6 +22,14 @@ from cosim.world import LEAD_ID, World
 N = 8  # an octagon: every turn 45 deg, never a hairpin
 
 
+class Node:
+    def __init__(self, nid: str):
+        self.nid = nid
+
+    def getID(self):
+        return self.nid
+
+
 class FakeEdge:
     def __init__(self, k: int):
         self.k = k
@@ -40,6 +48,9 @@ class FakeEdge:
 
     def getShape(self):
         return self._shape
+
+    def getToNode(self):
+        return Node(f"n{(self.k + 1) % N}")
 
     def getOutgoing(self):
         return {self.next: []}
@@ -150,6 +161,9 @@ class StraightEdge:
     def getShape(self):
         return self._shape
 
+    def getToNode(self):
+        return Node(f"{self._shape[1][0]:g},{self._shape[1][1]:g}")
+
     def getOutgoing(self):
         return {e: [] for e in self.outgoing}
 
@@ -196,6 +210,8 @@ class JamBridge:
     def find_route(self, origin, destination):
         self.asked.append((origin, destination))
         straight = ["e0", "e1", "e2", "e3", "e4"]
+        if "x2" in self.weights and (origin, destination) == ("e1", "e3"):  # a queue on the way round too
+            return ["e1", "e2", "e3"]
         if "e2" in self.weights and destination == "e3":
             return straight[straight.index(origin) : 1] + ROUND if origin == "e0" else ROUND
         return straight[straight.index(origin) : straight.index(destination) + 1]
@@ -275,3 +291,25 @@ def test_it_looks_only_every_replan_interval_and_without_a_lead_the_ego_leads():
     r, events = _jam_route(bridge, lead=False)
     assert r.update(EXTEND_AHEAD_M + 1.0, 0, 50.0) == 2  # the ego's own edge and metres left on it
     assert r.edges == ["e0", *ROUND, "e4"] and not bridge.replaced and events[0].vehicle == "ego"
+
+
+def test_a_queue_gone_round_is_remembered_so_the_pair_does_not_turn_back_into_it():
+    bridge = JamBridge()
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) == 2
+    # 5 s on a shorter queue stalls on the way round; SUMO's router, still holding e2's cost, says back
+    bridge.queues = {"x2": [(3, 80.0)]}
+    r.world.t_s += REPLAN_EVERY_S
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) is None  # e2's 150 s against x2's 90 s: it stays
+    assert r.edges == ["e0", *ROUND, "e4"] and len(events) == 1
+    r.world.t_s += route_phase.JAM_HOLD_S  # e2 long forgotten: only x2's queue counts
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) == 2
+    assert r.edges == ["e0", "e1", "e2", "e3", "e4"]
+
+
+def test_no_way_round_that_loops_back_through_a_junction_it_passes():
+    bridge = JamBridge()
+    r, events = _jam_route(bridge)
+    r.chainer.to_node["x2"] = r.chainer.to_node["e0"]  # as if x2 ended where e0 does, before the way round
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) is None
+    assert r.edges == ["e0", "e1", "e2", "e3", "e4"] and not events and not bridge.replaced
