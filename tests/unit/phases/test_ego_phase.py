@@ -247,20 +247,24 @@ def test_an_extended_route_rebuilds_the_path_and_sumo_gets_the_new_stretch():
     assert d.bridge.given[-1] == ["a", "b", "c", "d", "e"]
 
 
+class Replan:
+    """The route's extension as the ego's controller sees it: at its second call the edges from ``first`` on
+    become ``tail`` (a way round a stalled queue)."""
+
+    def __init__(self, route: list[str], first: int, tail: list[str]):
+        self.route, self.first, self.tail, self.calls = route, first, tail, 0
+
+    def update(self, ahead_m, ego_index, ego_edge_left_m):
+        self.calls += 1
+        if self.calls == 2:
+            self.route[self.first :] = self.tail  # in place: the list is shared
+            return self.first
+        return None
+
+
 def test_a_route_replanned_inside_the_stretch_sumo_holds_is_given_to_sumo_at_once():
-    class Replan:
-        def __init__(self, route):
-            self.route, self.calls = route, 0
-
-        def update(self, ahead_m, ego_index, ego_edge_left_m):
-            self.calls += 1
-            if self.calls == 2:
-                self.route[1:] = ["x", "y"]  # a way round from the end of "a" on
-                return 1
-            return None
-
     d = Drive(extension=None)
-    d.ego.extension = Replan(d.route)
+    d.ego.extension = Replan(d.route, 1, ["x", "y"])  # a way round from the end of "a" on
     d.place()
     d.step()
     assert d.bridge.given == [["a", "b", "c"]]
@@ -269,19 +273,8 @@ def test_a_route_replanned_inside_the_stretch_sumo_holds_is_given_to_sumo_at_onc
 
 
 def test_a_route_replanned_while_the_twin_stands_in_a_junction_is_given_from_the_edge_it_left():
-    class Replan:
-        def __init__(self, route):
-            self.route, self.calls = route, 0
-
-        def update(self, ahead_m, ego_index, ego_edge_left_m):
-            self.calls += 1
-            if self.calls == 2:
-                self.route[2:] = ["x"]
-                return 2
-            return None
-
     d = Drive(extension=None)
-    d.ego.extension = Replan(d.route)
+    d.ego.extension = Replan(d.route, 2, ["x"])
     slot = d.place()
     d.step()
     assert d.bridge.given == [["a", "b", "c"]]

@@ -1,4 +1,5 @@
-"""The ego's route extension with fake ports: a ring road of fake edges, a fake router (no SUMO)."""
+"""The ego's route: its extension on a ring road and its way round a stalled queue on a small grid of fake
+edges, with a fake router and fake queues (no SUMO)."""
 
 from __future__ import annotations
 
@@ -31,34 +32,38 @@ class Node:
 
 
 class FakeEdge:
-    def __init__(self, k: int):
-        self.k = k
-        a, b = 2 * math.pi * k / N, 2 * math.pi * (k + 1) / N
-        self._shape = [(500 * math.cos(a), 500 * math.sin(a)), (500 * math.cos(b), 500 * math.sin(b))]
-        self.next: FakeEdge | None = None
+    """A straight one-way road from ``a`` to ``b`` at 10 m/s; its junction is named by where it ends."""
+
+    def __init__(self, eid: str, a: tuple[float, float], b: tuple[float, float]):
+        self.eid, self._shape, self.outgoing = eid, [a, b], []
 
     def getID(self):
-        return f"e{self.k}"
+        return self.eid
 
     def getLength(self):
         return math.dist(*self._shape)
 
     def getSpeed(self):
-        return 13.89
+        return 10.0
 
     def getShape(self):
         return self._shape
 
     def getToNode(self):
-        return Node(f"n{(self.k + 1) % N}")
+        return Node(f"{self._shape[1][0]:g},{self._shape[1][1]:g}")
 
     def getOutgoing(self):
-        return {self.next: []}
+        return {e: [] for e in self.outgoing}
 
 
-EDGES = [FakeEdge(k) for k in range(N)]
+def _corner(k: int) -> tuple[float, float]:
+    a = 2 * math.pi * k / N
+    return 500 * math.cos(a), 500 * math.sin(a)
+
+
+EDGES = [FakeEdge(f"e{k}", _corner(k), _corner(k + 1)) for k in range(N)]
 for _k, _e in enumerate(EDGES):
-    _e.next = EDGES[(_k + 1) % N]
+    _e.outgoing.append(EDGES[(_k + 1) % N])
 
 
 class FakeBridge:
@@ -144,35 +149,12 @@ def test_without_a_lead_only_the_egos_route_grows():
 
 # --- a way round a stalled queue -----------------------------------------------------------------------------
 # e0 -> e1 -> e2 -> e3 -> e4 along the x axis; from the end of e1 a way round e2: x1 north, x2 east, x3 south
-# back to the start of e3 (turns of 90 deg, never a hairpin). 10 m/s everywhere.
-class StraightEdge:
-    def __init__(self, eid: str, a: tuple[float, float], b: tuple[float, float]):
-        self.eid, self._shape, self.outgoing = eid, [a, b], []
-
-    def getID(self):
-        return self.eid
-
-    def getLength(self):
-        return math.dist(*self._shape)
-
-    def getSpeed(self):
-        return 10.0
-
-    def getShape(self):
-        return self._shape
-
-    def getToNode(self):
-        return Node(f"{self._shape[1][0]:g},{self._shape[1][1]:g}")
-
-    def getOutgoing(self):
-        return {e: [] for e in self.outgoing}
-
-
+# back to the start of e3 (turns of 90 deg, never a hairpin).
 def _grid():
     pts = {"e0": ((0, 0), (200, 0)), "e1": ((200, 0), (300, 0)), "e2": ((300, 0), (400, 0)),
            "e3": ((400, 0), (800, 0)), "e4": ((800, 0), (1200, 0)), "x1": ((300, 0), (300, 100)),
            "x2": ((300, 100), (400, 100)), "x3": ((400, 100), (400, 0))}  # fmt: skip
-    edges = {k: StraightEdge(k, *v) for k, v in pts.items()}
+    edges = {k: FakeEdge(k, *v) for k, v in pts.items()}
     for a, b in [("e0", "e1"), ("e1", "e2"), ("e2", "e3"), ("e3", "e4"), ("e1", "x1"), ("x1", "x2"),
                  ("x2", "x3"), ("x3", "e3")]:  # fmt: skip
         edges[a].outgoing.append(edges[b])
