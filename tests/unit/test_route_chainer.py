@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 from cosim.scenario.demand import RouteChainer
 
@@ -23,6 +24,12 @@ class StraightEdge:
 
     def getShape(self):  # noqa: N802
         return self.shape
+
+    def getSpeed(self):  # noqa: N802
+        return 13.89
+
+    def getToNode(self):  # noqa: N802
+        return SimpleNamespace(getID=lambda: f"{self.eid}:end")
 
     def getOutgoing(self):  # noqa: N802
         return {}
