@@ -380,32 +380,32 @@ class SumoBridge:
             return SumoEvent("ego_write_failed", EGO_ID, str(exc).splitlines()[0][:200])
         return None
 
+    def _set_route(self, vid: str, edges: list[str]) -> str | None:
+        """SUMO's setRoute for ``vid``; the first line of SUMO's refusal, or None when it took the route."""
+        try:
+            self._sumo.vehicle.setRoute(vid, edges)
+        except Exception as exc:  # libsumo.TraCIException
+            return str(exc).splitlines()[0][:200]
+        return None
+
     def set_ego_route(self, edges: list[str]) -> SumoEvent | None:
         """Replace the ego's route in SUMO; ``edges[0]`` must be the edge it is on."""
-        try:
-            self._sumo.vehicle.setRoute(EGO_ID, edges)
-        except Exception as exc:  # libsumo.TraCIException
-            return SumoEvent("ego_route_rejected", EGO_ID, str(exc).splitlines()[0][:200])
-        return None
+        refused = self._set_route(EGO_ID, edges)
+        return None if refused is None else SumoEvent("ego_route_rejected", EGO_ID, refused)
 
     def extend_route(self, vid: str, edges: list[str]) -> bool:
         """Append ``edges`` to the route SUMO holds for ``vid`` (which must end where they start); False
         when SUMO refused (e.g. while the vehicle is being inserted): the caller tries again later."""
         veh = self._sumo.vehicle
         try:
-            held = veh.getRoute(vid)
-            veh.setRoute(vid, [*held[veh.getRouteIndex(vid) :], *edges])
-        except Exception:  # libsumo.TraCIException
+            held = veh.getRoute(vid)[veh.getRouteIndex(vid) :]
+        except Exception:  # libsumo.TraCIException: not in the network yet
             return False
-        return True
+        return self._set_route(vid, [*held, *edges]) is None
 
     def replace_route(self, vid: str, edges: list[str]) -> bool:
         """Give ``vid`` the route ``edges`` (``edges[0]`` its current route edge); False when SUMO refused."""
-        try:
-            self._sumo.vehicle.setRoute(vid, edges)
-        except Exception:  # libsumo.TraCIException
-            return False
-        return True
+        return self._set_route(vid, edges) is None
 
     def route_edge_left(self, vid: str) -> tuple[str, float]:
         """(the edge of its route ``vid`` is on or has just left for a junction, metres left on it: 0 in the
@@ -469,11 +469,7 @@ class SumoBridge:
                 if not more:
                     break
                 new.append(more[0])
-            try:
-                veh.setRoute(vid, new)
-            except Exception:  # libsumo.TraCIException: SUMO refused the route
-                return None
-            return out[0]
+            return out[0] if self._set_route(vid, new) is None else None
         return None
 
     def _exits(self, edge: str, avoid: set[str], prefer: str = "rls") -> list[str]:
