@@ -8,11 +8,13 @@ from pathlib import Path
 from cosim.sumo_bridge.tools import run_tool
 
 
-def plain_net(folder: Path, nodes: dict[str, tuple[float, float]], edges: dict[str, tuple[str, str, int]], *,
-              priority_nodes: Iterable[str] | None = None, speed_mps: float = 13.89) -> Path:  # fmt: skip
-    """``folder``/n.net.xml from ``nodes`` (id -> x, y [m]) and ``edges`` (id -> from node, to node, road
-    priority), every edge one lane at ``speed_mps``, no turnarounds. The nodes listed in ``priority_nodes``
-    are priority junctions and every other node a dead end; without it netconvert picks the types."""
+def plain_net(folder: Path, nodes: dict[str, tuple[float, float]], edges: dict[str, tuple], *,
+              priority_nodes: Iterable[str] | None = None, speed_mps: float = 13.89,
+              options: Iterable[str] = ()) -> Path:  # fmt: skip
+    """``folder``/n.net.xml from ``nodes`` (id -> x, y [m]) and ``edges`` (id -> (from node, to node, road
+    priority[, lanes])), one lane unless given, at ``speed_mps``, no turnarounds. The nodes listed in
+    ``priority_nodes`` are priority junctions and every other node a dead end; without it netconvert picks
+    the types. ``options`` are further netconvert options (the scenario pipeline's, say)."""
     priority = None if priority_nodes is None else set(priority_nodes)  # a node id in it, not a substring
 
     def node_type(n: str) -> str:
@@ -28,13 +30,14 @@ def plain_net(folder: Path, nodes: dict[str, tuple[float, float]], edges: dict[s
     (folder / "n.edg.xml").write_text(
         "<edges>"
         + "".join(
-            f'<edge id="{e}" from="{a}" to="{b}" numLanes="1" speed="{speed_mps}" priority="{p}"/>'
-            for e, (a, b, p) in edges.items()
+            f'<edge id="{e}" from="{a}" to="{b}" numLanes="{lanes[0] if lanes else 1}" speed="{speed_mps}" '
+            f'priority="{p}"/>'
+            for e, (a, b, p, *lanes) in edges.items()
         )
         + "</edges>"
     )
     out = folder / "n.net.xml"
     run = run_tool("netconvert", ["-n", str(folder / "n.nod.xml"), "-e", str(folder / "n.edg.xml"),
-                                  "--no-turnarounds", "true", "-o", str(out)])  # fmt: skip
+                                  "--no-turnarounds", "true", *options, "-o", str(out)])  # fmt: skip
     assert run.returncode == 0, run.log
     return out

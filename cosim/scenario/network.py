@@ -42,6 +42,10 @@ SHORT_LINK_M = 60.0  # a sign node farther than this from its junction along the
 COMMON_OPTIONS = [
     "--junctions.limit-turn-speed", "5.5",  # curve speed limit on junctions: ~0.55 g lateral (paper IV.B)
     "--no-turnarounds.except-deadend", "true",
+    # a merge into one lane of a multi-lane road yields to that lane only (HCM 2010 Exhibit 19-14: v_2 / N);
+    # netconvert's default (foes per edge pair) made Monaco's 25193333 side street wait for gaps in the far
+    # lane too: a car every 60-75 s. tests/integration/test_lane_merge_capacity.py
+    "--check-lane-foes.all", "true",
     "--output.street-names", "true",
     "--output.original-names", "true",
 ]  # fmt: skip
