@@ -21,5 +21,5 @@ def test_a_change_to_the_pipeline_code_builds_anew(tmp_path, monkeypatch):
 def test_every_module_of_the_scenario_pipeline_is_in_the_key():
     scenario = Path(build.__file__).parent
     sources = set(build.PIPELINE_SOURCES)
-    assert set(scenario.glob("*.py")) <= sources
+    assert set(scenario.glob("*.py")) - sources == {scenario / "check.py"}  # it runs a scenario, builds none
     assert Path(build.read_network.__code__.co_filename) in sources  # the net reader the fixes use
