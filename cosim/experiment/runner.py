@@ -265,6 +265,18 @@ _COLS = [("phase", "phase"), ("system", "system"), ("time_gap_mean_s", "mean TG 
          ("following_share", "following"), ("lead_leader_share", "lead is leader")]  # fmt: skip
 
 
+_HEALTH_COLS = ("distance [m]", "drive health")
+
+
+def _health_cells(ph: dict) -> tuple[str, str]:
+    """The phase's drive distance and health as the summary shows them: a degraded phase names why."""
+    h = ph.get("health")
+    if h is None:
+        return "–", "no data"
+    status = h["status"] if h["status"] == "ok" else f"{h['status']}: " + "; ".join(h["problems"])
+    return f"{h['ego_distance_m']:.0f}", status
+
+
 def _cell(v) -> str:
     return "–" if v is None else f"{v:g}" if isinstance(v, float) else str(v)
 
@@ -281,9 +293,12 @@ def summary_markdown(summary: dict) -> str:
                   "*Assumptions* at the end.", ""]  # fmt: skip
     for r in summary["participants"]:
         lines += [f"## {r['participant']} ({r['profile']}), order: {' > '.join(r['order'])}", "",
-                  "| " + " | ".join(h for _, h in _COLS) + " |", "|" + "---|" * len(_COLS)]  # fmt: skip
+                  "| " + " | ".join([*(h for _, h in _COLS), *_HEALTH_COLS]) + " |",
+                  "|" + "---|" * (len(_COLS) + len(_HEALTH_COLS))]  # fmt: skip
         for ph in r["phases"]:
-            lines.append("| " + " | ".join(_cell(ph.get(k)) for k, _ in _COLS) + " |")
+            lines.append(
+                "| " + " | ".join([*(_cell(ph.get(k)) for k, _ in _COLS), *_health_cells(ph)]) + " |"
+            )
         lines.append("")
     lines += ["## Across participants (mean per system)", "",
               "| system | n | mean TG [s] | SD [s] | < 2 s | < 1 s | warnings | hard brakes | collisions | min TTC [s] | PDR leader |",

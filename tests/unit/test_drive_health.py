@@ -87,3 +87,28 @@ def test_a_collision_is_the_egos_whether_it_hit_or_was_hit():
     )  # the summary missed this one
     assert not involves_ego("scv1", "with scv2 (junction) on :j_0_0")
     assert not involves_ego("scv1", "with ego2 (front) on e_0")
+
+
+def test_the_experiment_summary_shows_each_phases_distance_and_why_it_degraded():
+    """summary.md, not only the warning lines on stderr, names a degraded phase and why (issue 15.6)."""
+    from cosim.experiment.runner import degraded_phases, summary_markdown
+
+    def phase(name, distance, problems):
+        health = {
+            "ego_distance_m": distance,
+            "problems": problems,
+            "status": "degraded" if problems else "ok",
+        }
+        return {"phase": name, "system": "none", "health": health}
+
+    short = "the ego drove only 163 m in 300 s"
+    summary = {"experiment": "x", "wall_s": 1.0, "jobs": 1, "simulated_s": 600.0, "across": [],
+               "participants": [{"participant": "P4", "profile": "occasional_driver", "order": ["baseline", "system_A"],
+                                 "phases": [phase("baseline", 1127.4, []), phase("system_A", 163.2, [short]),
+                                            {"phase": "system_B", "system": "B", "health": None}]}]}  # fmt: skip
+    rows = [line for line in summary_markdown(summary).splitlines() if line.startswith("| ")]
+    assert rows[0].endswith("| distance [m] | drive health |")
+    assert rows[1].endswith("| 1127 | ok |")
+    assert rows[2].endswith(f"| 163 | degraded: {short} |")
+    assert rows[3].endswith("| – | no data |")
+    assert degraded_phases(summary) == [f"P4 system_A: {short}", "P4 system_B: no data"]
