@@ -171,10 +171,11 @@ class Simulation:
                                                     rng=stream(config.seed, "traffic"), step_s=self.step_s,
                                                     bridge=self.bridge)  # fmt: skip
                     self.stats.update(scv_generated=0, scv_removed=0)
-            from cosim.phases.impatience import QueueHeadImpatience
+            if self.bridge.time_to_impatience_s() > 0:  # SUMO's switch: non-positive = no impatience growth
+                from cosim.phases.impatience import QueueHeadImpatience
 
-            self.impatience = QueueHeadImpatience(self.bridge, time_to_impatience_s=self.bridge.time_to_impatience_s(),
-                                                  step_s=self.step_s)  # fmt: skip
+                self.impatience = QueueHeadImpatience(self.bridge, step_s=self.step_s,
+                                                      time_to_impatience_s=self.bridge.time_to_impatience_s())  # fmt: skip
             self.health = DriveHealth(config.ego, self.step_s)  # scheduled after the ego's phases: it reads
             # what they decided
             if self.mcap is not None:
@@ -320,7 +321,8 @@ class Simulation:
         if self.ego is not None:
             s.append(("ego", self._ego_integrate))  # ego: MuJoCo integrates the car over the SUMO step
             s.append(("writeback", self._ego_write_back))  # writeback: the ego's pose into SUMO
-        s.append(("writeback", self._impatience_step))  # SUMO's queue heads: impatience held while they creep
+        if self.impatience is not None:  # SUMO's queue heads: impatience held while they creep
+            s.append(("writeback", self._impatience_step))
         if self.traffic is not None:
             s.append(("writeback", self._traffic_step))  # SCVs generated and removed around the ego
         if self.health is not None:

@@ -102,3 +102,19 @@ def test_the_minor_capacity_stays_close_to_hcm_2010(merge):
         r0, r1 = (n * 3600.0 / DURATION_S / hcm for n in (through0, through1))
         print(f"v_c {v_c:.0f} veh/h: minor capacity / HCM 2010, plain SUMO {r0:.2f}, with the phase {r1:.2f}")
         assert 0.75 <= r1 <= 1.3 and abs(r1 - 1.0) <= abs(r0 - 1.0) + 0.05, (v_c, r0, r1)
+
+
+def test_sumos_own_switch_turns_the_phase_off(tmp_path):
+    """``--time-to-impatience 0`` (SUMO: a non-positive value disables impatience growth) leaves SUMO's queue
+    heads as patient as SUMO makes them: no phase (it would divide by zero)."""
+    from testpaths import ROOT
+
+    from cosim.runconfig import load_run_config
+    from cosim.sim import Simulation
+
+    cfg = load_run_config(ROOT / "configs" / "default.yaml", duration_s=1.0)
+    with Simulation(cfg, out_dir=tmp_path / "off", sumo_args=("--time-to-impatience", "0")) as sim:
+        assert sim.impatience is None
+        sim.run()
+    with Simulation(cfg, out_dir=tmp_path / "on") as sim:
+        assert sim.impatience is not None
