@@ -171,11 +171,12 @@ class Simulation:
                                                     rng=stream(config.seed, "traffic"), step_s=self.step_s,
                                                     bridge=self.bridge)  # fmt: skip
                     self.stats.update(scv_generated=0, scv_removed=0)
-            if self.bridge.time_to_impatience_s() > 0:  # SUMO's switch: non-positive = no impatience growth
+            time_to_impatience_s = self.bridge.time_to_impatience_s()
+            if time_to_impatience_s > 0:  # SUMO's switch: non-positive = no impatience growth
                 from cosim.phases.impatience import QueueHeadImpatience
 
                 self.impatience = QueueHeadImpatience(self.bridge, step_s=self.step_s,
-                                                      time_to_impatience_s=self.bridge.time_to_impatience_s())  # fmt: skip
+                                                      time_to_impatience_s=time_to_impatience_s)  # fmt: skip
             self.health = DriveHealth(config.ego, self.step_s)  # scheduled after the ego's phases: it reads
             # what they decided
             if self.mcap is not None:

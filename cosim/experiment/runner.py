@@ -235,9 +235,7 @@ def degraded_phases(summary: dict) -> list[str]:
         for ph in r["phases"]:
             h = ph.get("health")
             if h is None or h["status"] != "ok":
-                out.append(
-                    f"{r['participant']} {ph['phase']}: " + ("; ".join(h["problems"]) if h else "no data")
-                )
+                out.append(f"{r['participant']} {ph['phase']}: {_problems(h)}")
     return out
 
 
@@ -273,8 +271,13 @@ def _health_cells(ph: dict) -> tuple[str, str]:
     h = ph.get("health")
     if h is None:
         return "–", "no data"
-    status = h["status"] if h["status"] == "ok" else f"{h['status']}: " + "; ".join(h["problems"])
+    status = h["status"] if h["status"] == "ok" else f"{h['status']}: {_problems(h)}"
     return f"{h['ego_distance_m']:.0f}", status
+
+
+def _problems(health: dict | None) -> str:
+    """A phase health's problems as one line ("no data" without a health record)."""
+    return "; ".join(health["problems"]) if health else "no data"
 
 
 def _cell(v) -> str:
