@@ -56,6 +56,11 @@ BENCHES = [
         "The driving task on every real map: drive health of 300-s default runs and of the experiment (issue 15)",
         ["bench.bench_drive", "--experiment"],
     ),
+    (
+        "traffic",
+        "Background traffic in plain SUMO: collisions and teleports over 10 SUMO seeds per map (issue 15 item 5)",
+        ["bench.bench_traffic"],
+    ),
     ("sweep", "Sweep throughput, local pool vs Ray (issue: sweeps)", ["bench.bench_sweep"]),
     (
         "render",

@@ -14,17 +14,19 @@ import multiprocessing as mp
 from pathlib import Path
 
 
-def _run(sumocfg: str, duration_s: float, queue) -> None:
+def _run(sumocfg: str, duration_s: float, seed: int | None, queue) -> None:
     from cosim.sumo_bridge.plain import run_plain
 
-    queue.put(run_plain(sumocfg, duration_s))
+    queue.put(run_plain(sumocfg, duration_s, seed))
 
 
-def check_scenario(scenario_dir: str | Path, duration_s: float) -> dict:
-    """Simulate ``duration_s`` of the scenario's own traffic; the numbers are also stored in report.json."""
+def check_scenario(scenario_dir: str | Path, duration_s: float, *, seed: int | None = None,
+                   record: bool = True) -> dict:  # fmt: skip
+    """Simulate ``duration_s`` of the scenario's own traffic, with SUMO's random ``seed`` when given; with
+    ``record`` the numbers are also stored in report.json."""
     ctx = mp.get_context("spawn")
     q = ctx.Queue()
-    p = ctx.Process(target=_run, args=(str(Path(scenario_dir) / "scenario.sumocfg"), duration_s, q))
+    p = ctx.Process(target=_run, args=(str(Path(scenario_dir) / "scenario.sumocfg"), duration_s, seed, q))
     p.start()
     while True:
         try:
@@ -36,6 +38,8 @@ def check_scenario(scenario_dir: str | Path, duration_s: float) -> dict:
                     f"the SUMO check of {scenario_dir} failed (exit code {p.exitcode})"
                 ) from None
     p.join()
+    if not record:
+        return result
     report_file = Path(scenario_dir) / "report.json"
     report = json.loads(report_file.read_text())
     report["check"] = result

@@ -12,23 +12,18 @@ from pathlib import Path
 from cosim.sumo_bridge.tools import binary
 
 
-def run_plain(sumocfg: str | Path, duration_s: float) -> dict:
+def run_plain(sumocfg: str | Path, duration_s: float, seed: int | None = None) -> dict:
     """Simulate ``duration_s`` of the scenario's own traffic: teleports, collisions (distinct
-    collider/victim pairs; the first 50 with time, lane and vehicles), vehicles and the teleport share."""
+    collider/victim pairs; the first 50 with time, lane and vehicles), vehicles and the teleport share.
+    ``seed``: SUMO's random seed (its drivers' dawdling, departure speeds) instead of the scenario's."""
     import libsumo
 
     cfg = Path(sumocfg)
+    seed_args = ["--seed", str(seed)] if seed is not None else []
     libsumo.start(
-        [
-            binary("sumo"),
-            "-c",
-            str(cfg),
-            "--no-warnings",
-            "true",
-            "--additional-files",
-            str(cfg.parent / "signs.add.xml"),
-        ]
-    )
+        [binary("sumo"), "-c", str(cfg), "--no-warnings", "true",
+         "--additional-files", str(cfg.parent / "signs.add.xml"), *seed_args]
+    )  # fmt: skip
     sim = libsumo.simulation
     out = {
         "duration_s": duration_s,
