@@ -12,8 +12,9 @@ Helsinki), among them the junctions where the collisions of plain SUMO runs happ
 the ends of the lanes they join, where a car's body still is) come closer than a car's width plus a margin
 without a foe relation, and returns a netconvert ``<prohibition>`` for it: the lower-ranked movement
 yields to the higher-ranked one (major before minor, straight before right before left before U-turn).
-``turnaround_deletions`` removes U-turns at junctions that are not dead ends: on a two-lane street a car
-cannot turn on the spot, and SUMO's turnaround lane sweeps across the movements of the whole junction.
+``turnaround_deletions`` removes U-turns at junctions that are not dead ends (netconvert's turnarounds, and
+turns onto another road that reverse the heading within a car's length): on a two-lane street a car cannot
+turn on the spot, and SUMO's turnaround lane sweeps across the movements of the whole junction.
 ``separated_shapes`` gives custom internal-lane shapes to movements that run side by side closer than two car
 widths without crossing: SUMO relates foes inside a junction only by a crossing point, so such a pair is never
 kept apart there, foes or not.
@@ -176,15 +177,44 @@ def geometric_prohibitions(net_file: Path, skip: set[tuple[str, str]] = frozense
     return lines, [(j, p, q, d) for (p, q), (j, d) in sorted(found.items())]
 
 
+CAR_LENGTH_M = 5.0  # the longest SCV body waiting at an internal junction [m]
+# a movement that reverses its heading by more than this is a U-turn, whatever netconvert calls it [deg]
+U_TURN_DEG = 150.0
+
+
+def _is_u_turn(conn) -> bool:
+    """netconvert's turnaround ("t"), or a turn onto another road that reverses the heading within a car's
+    length (Monaco 258068679: a "left" from -159170450#1 into 33749606, which starts 2.1 m away, heading
+    back the way the car came; no car turns in 2 m, and SUMO's loop ends with the car's rear over the stop
+    line of its own approach, where the next car straight on ran into it: 13 of Monaco's 18 collisions in
+    10 seeds of plain SUMO)."""
+    if conn.getDirection() == "t":
+        return True
+    if _osm_way(conn.getFrom().getID()) == _osm_way(conn.getTo().getID()):
+        return False  # the road's own way on (a hairpin OSM draws with few nodes): cars drive it
+    a, b = conn.getFromLane().getShape(), conn.getToLane().getShape()
+    if len(a) < 2 or len(b) < 2 or math.dist(a[-1], b[0]) >= CAR_LENGTH_M:
+        return False
+    heading_in = math.atan2(a[-1][1] - a[-2][1], a[-1][0] - a[-2][0])
+    heading_out = math.atan2(b[1][1] - b[0][1], b[1][0] - b[0][0])
+    return abs(math.degrees((heading_out - heading_in + math.pi) % (2 * math.pi) - math.pi)) > U_TURN_DEG
+
+
+def _osm_way(edge_id: str) -> str:
+    """The OSM way (and direction) an edge comes from: netconvert splits way 123 into 123#0, 123#1, ..."""
+    return edge_id.split("#")[0]
+
+
 def turnaround_deletions(net) -> list[str]:
-    """``<delete>`` lines for U-turns where the edge has another way on and its reverse another way in."""
+    """``<delete>`` lines for U-turns (``_is_u_turn``) where the edge has another way on and the U-turn's
+    target another way in."""
     lines = []
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getFunction() == "internal":
             continue
         outgoing = edge.getOutgoing()
         for to_edge, conns in sorted(outgoing.items(), key=lambda kv: kv[0].getID()):
-            turns = [c for c in conns if c.getDirection() == "t"]
+            turns = [c for c in conns if _is_u_turn(c)]
             if not turns or len(turns) != len(conns):
                 continue
             other_out = [t for t in outgoing if t is not to_edge]
@@ -197,9 +227,6 @@ def turnaround_deletions(net) -> list[str]:
                     f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}"/>'
                 )
     return lines
-
-
-CAR_LENGTH_M = 5.0  # the longest SCV body waiting at an internal junction [m]
 
 
 def _path(shapes, c: _Conn, lead_in_m: float = 0.0, lead_out_m: float = 0.0):

@@ -104,3 +104,20 @@ def test_scvs_reroute_and_the_ego_type_does_not():
     )
     with pytest.raises(ValueError):
         ScvBehaviour(reroute_period_s=-1)
+
+
+def test_a_turn_that_doubles_back_within_a_car_length_is_a_u_turn(tmp_path):
+    """Monaco 258068679: a one-way road leaves a two-way road's junction heading back beside it; netconvert
+    calls the turn into it from the far side a "left", but it reverses the heading within 2 m, which no car
+    can. It goes like a turnaround where the street goes on; the road's own way on and a real left stay."""
+    from tests.plain_net import plain_net
+
+    # S <-> C <-> N two-way; the one-way C -> X leaves C southwards, 3 m beside C -> S; W -> C a side road
+    nodes = {"S": (0, -100), "C": (0, 0), "N": (0, 100), "X": (4, -100), "W": (-100, 0)}
+    edges = {"SC": ("S", "C", 2), "CS": ("C", "S", 2), "NC": ("N", "C", 2), "CN": ("C", "N", 2),
+             "CX": ("C", "X", 1), "WC": ("W", "C", 1)}  # fmt: skip
+    net = sumolib.net.readNet(str(plain_net(tmp_path, nodes, edges, priority_nodes=["C"])))
+    assert "CX" in [e.getID() for e in net.getEdge("SC").getOutgoing()]  # netconvert built the turn
+    deleted = turnaround_deletions(net)
+    assert [line for line in deleted if 'from="SC" to="CX"' in line], deleted
+    assert not [line for line in deleted if 'to="CX"' in line and 'from="SC"' not in line], deleted
