@@ -184,10 +184,11 @@ U_TURN_DEG = 150.0
 
 def _is_u_turn(conn) -> bool:
     """netconvert's turnaround ("t"), or a turn onto another road that reverses the heading within a car's
-    length (Monaco 258068679: a "left" from -159170450#1 into 33749606, which starts 2.1 m away, heading
-    back the way the car came; no car turns in 2 m, and SUMO's loop ends with the car's rear over the stop
-    line of its own approach, where the next car straight on ran into it: 13 of Monaco's 18 collisions in
-    10 seeds of plain SUMO)."""
+    length, which no car can (AASHTO's passenger-car design vehicle turns on a 7.3-m minimum radius: A
+    Policy on Geometric Design of Highways and Streets, 2011, Table 2-2b). Monaco 258068679: a "left" from
+    -159170450#1 into 33749606, which starts 2.1 m away heading back the way the car came; SUMO's loop
+    ends with the car's rear over the stop line of its own approach, where the next car straight on ran
+    into it: 13 of Monaco's 18 collisions in 10 seeds of plain SUMO."""
     if conn.getDirection() == "t":
         return True
     if _osm_way(conn.getFrom().getID()) == _osm_way(conn.getTo().getID()):
