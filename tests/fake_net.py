@@ -130,8 +130,8 @@ class Edge:
 
 
 class _Phase:
-    def __init__(self, state: str):
-        self.state = state
+    def __init__(self, state: str, duration: float = 30.0):
+        self.state, self.duration, self.minDur, self.maxDur = state, duration, -1, -1
 
 
 class _Program:

@@ -78,7 +78,7 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         # fixed 90-s cycles the ego drove 1144 m on Helsinki in 300 s (seed 1), 1536 m gap-actuated
         "--tls.default-type", TLS_TYPE,
         # opposite approaches share a green (netconvert's default layout); a left turn without its own lane
-        # gets its own approach green instead (tls_layout_patches), not a permissive green
+        # waits at no permissive green: its phase is split into one green per approach (split_signal_plans)
         "--tls.layout", "opposites",
         "--ramps.guess", "true",
         # OSM width tags split over the lanes give 1.5-m lanes on narrow two-way streets (Helsinki
@@ -256,35 +256,123 @@ def turn_lane_deletions(edge) -> list[str]:
     return deletions
 
 
-def tls_layout_patches(net) -> list[str]:
-    """Node patches giving every approach of a light its own green where a left turn shares its lane with
-    other movements and so can only turn at a permissive green (state ``g``): queued behind a gap that may
-    never come in the oncoming stream (Krems 255094759, where that stream turned into the same lane), it
-    also holds up every car behind it in the lane. netconvert adds a protected left phase only for a left
-    turn with its own lane (SUMO docs, Simulation/Traffic_Lights, "Automatically Generated TLS-Programs").
-    Lights that control several junctions (tls.join) keep their plan: one junction's layout cannot change
-    alone. So does a light with another light at the end of a short road (``SHORT_LINK_M``): a green for one
-    approach at a time is too short to empty a queue into a road that holds a few cars and that the
-    neighbour's plan empties at its own times (Helsinki 30471502#2 into the 30-m 30259739#0: both fixed
-    90-s cycles, the queue stood through every green for whole experiment phases)."""
-    patches = []
+@dataclass
+class SignalPhase:
+    """One phase of a light's plan (SUMO ``<phase>``); ``min_s`` / ``max_s`` for gap-actuated phases."""
+
+    duration_s: float
+    state: str
+    min_s: float | None = None
+    max_s: float | None = None
+
+
+MIN_GREEN_S = 5.0  # netconvert's minDur of an actuated green
+
+
+def split_permissive_phases(phases: list[SignalPhase],
+                            links: dict[int, tuple[str, str, str]]) -> list[SignalPhase] | None:  # fmt: skip
+    """The plan with one green per approach in each phase where a left turn waits at a permissive green on a
+    lane it shares with other movements and never gets a protected one; None when there is no such phase.
+
+    ``links``: the light's link index -> (approach edge, lane, direction). Queued behind a gap that may never
+    come in the oncoming stream (Krems 255094759, where that stream turned into the same lane), such a left
+    holds up every car behind it. netconvert gives a left turn a protected phase only when it has its own lane
+    (SUMO docs, Simulation/Traffic_Lights, "Automatically Generated TLS-Programs"). Split phasing serves
+    the approaches of that phase one after the other, each with all its movements protected (FHWA Signal
+    Timing Manual, 2nd ed., NCHRP Report 812, 2015: split phasing for shared through-left lanes); the other
+    phases keep netconvert's plan: at Krems 71582001 the main road keeps its shared green and its protected
+    lefts (24 + 6 s of 90) and only the side roads' shared phase is split, where one green per approach for
+    all five approaches left the main road 15 s of 90 and the experiment's pair queued there for whole phases.
+    The split phase's time is shared out equally."""
+    protected = {i for ph in phases for i, c in enumerate(ph.state) if c == "G"}
+    by_lane: dict[str, list[tuple[int, str]]] = defaultdict(list)
+    for i, (_edge, lane, direction) in links.items():
+        by_lane[lane].append((i, direction))
+    waiting = set()  # left turns that only ever get a permissive green, on a lane shared with other movements
+    for lane_links in by_lane.values():
+        lefts = [i for i, d in lane_links if d in ("l", "L") and i not in protected]
+        if lefts and any(d not in ("l", "L", "t") for _, d in lane_links):
+            waiting |= {i for i in lefts if any(ph.state[i] == "g" for ph in phases)}
+    if not waiting:
+        return None
+    out: list[SignalPhase] = []
+    k = 0
+    while k < len(phases):
+        green_phase = phases[k]
+        green = [i for i, c in enumerate(green_phase.state) if c in "Gg"]
+        k += 1
+        transition = []  # the yellow after it (links green in it may stay green)
+        while (
+            k < len(phases)
+            and "y" in phases[k].state
+            and all(c not in "Gg" or green_phase.state[i] in "Gg" for i, c in enumerate(phases[k].state))
+        ):
+            transition.append(phases[k])
+            k += 1
+        if not any(green_phase.state[i] == "g" for i in waiting):
+            out += [green_phase, *transition]
+            continue
+        approaches = list(dict.fromkeys(links[i][0] for i in green if i in links))
+        yellow_s = transition[0].duration_s if transition else 3.0
+
+        def share(v: float | None, n: int = len(approaches)) -> float | None:
+            return None if v is None else max(MIN_GREEN_S, round(v / n))
+
+        for approach in approaches:
+            mine = {i for i in green if i in links and links[i][0] == approach}
+            n_links = len(green_phase.state)
+            out.append(SignalPhase(share(green_phase.duration_s), "".join("G" if i in mine else "r" for i in range(n_links)),
+                                   share(green_phase.min_s), share(green_phase.max_s)))  # fmt: skip
+            out.append(SignalPhase(yellow_s, "".join("y" if i in mine else "r" for i in range(n_links))))
+    return out
+
+
+def split_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
+    """The plans ``split_permissive_phases`` changes: light id -> programme id -> phases. Lights that control
+    several junctions (tls.join) keep their plan, and so does a light with another light at the end of a
+    short road (``SHORT_LINK_M``): a green for one approach at a time is too short to empty a queue into a
+    road that holds a few cars and that the neighbour's plan empties at its own times (Helsinki 30471502#2
+    into the 30-m 30259739#0: the queue stood through every green for whole experiment phases)."""
+    plans: dict[str, dict[str, list[SignalPhase]]] = {}
     for tls in sorted(net.getTrafficLights(), key=lambda t: t.getID()):
-        links = tls.getConnections()
-        nodes = {inl.getEdge().getToNode() for inl, _, _ in links}
+        conns = tls.getConnections()
+        nodes = {inl.getEdge().getToNode() for inl, _, _ in conns}
         if len(nodes) != 1 or _short_link_to_a_light(next(iter(nodes))):
             continue
-        phases = [ph.state for prog in tls.getPrograms().values() for ph in prog.getPhases()]
-        minor = {i for _, _, i in links if any(state[i] == "g" for state in phases)}
-        lanes = {inl for inl, _, _ in links}
-        if any(_shared_minor_left(lane, minor) for lane in lanes):
-            node = next(iter(nodes))
-            x, y = node.getCoord()[:2]
-            # a new light id: netconvert keeps a loaded plan for the old one whatever tlLayout says. Fixed
-            # time: gap-actuated, a saturated approach holds every green to maxDur (a 4 x 53-s cycle at a
-            # four-arm junction); plain SUMO on Krems (600 s) teleported 2.8 % of its vehicles, < 2 % fixed
-            patches.append(f'    <node id={quoteattr(node.getID())} x="{x:.2f}" y="{y:.2f}" type="traffic_light" '
-                           f'tl={quoteattr(tls.getID() + "_incoming")} tlType="static" tlLayout="incoming"/>')  # fmt: skip
-    return patches
+        links = {}
+        for inl, _, i in conns:
+            direction = next((c.getDirection() for c in inl.getOutgoing() if c.getTLLinkIndex() == i), "s")
+            links[i] = (inl.getEdge().getID(), inl.getID(), direction)
+        for program_id, program in tls.getPrograms().items():
+            phases = [SignalPhase(ph.duration, ph.state, _dur(ph.minDur), _dur(ph.maxDur))
+                      for ph in program.getPhases()]  # fmt: skip
+            split = split_permissive_phases(phases, links)
+            if split is not None:
+                plans.setdefault(tls.getID(), {})[program_id] = split
+    return plans
+
+
+def write_signal_plans(net_file: Path, plans: dict[str, dict[str, list[SignalPhase]]]) -> None:
+    """Replace the phases of the given programmes in ``net_file`` (the rest of the file stays as it is)."""
+    text = net_file.read_text()
+    for tls_id, programs in plans.items():
+        for program_id, phases in programs.items():
+            tl_id, prog = re.escape(quoteattr(tls_id)), re.escape(quoteattr(program_id))
+            block = re.compile(rf"( *)<tlLogic id={tl_id} [^>]*programID={prog}[^>]*>.*?</tlLogic>", re.S)
+            match = block.search(text)
+            head = re.match(r" *<tlLogic [^>]*>", match.group(0)).group(0)
+            pad = match.group(1) + "    "
+            body = "".join(f'\n{pad}<phase duration="{ph.duration_s:g}" state="{ph.state}"'
+                           + ("" if ph.min_s is None else f' minDur="{ph.min_s:g}" maxDur="{ph.max_s:g}"') + "/>"
+                           for ph in phases)  # fmt: skip
+            text = text[: match.start()] + head + body + f"\n{match.group(1)}</tlLogic>" + text[match.end() :]
+    if plans:
+        net_file.write_text(text)
+
+
+def _dur(value) -> float | None:
+    """sumolib's minDur / maxDur of a phase: -1 (or None) when the phase has none."""
+    return None if value is None or float(value) < 0 else float(value)
 
 
 def _short_link_to_a_light(node) -> bool:
@@ -294,12 +382,6 @@ def _short_link_to_a_light(node) -> bool:
     ]
     return any(e.getLength() < SHORT_LINK_M and other is not node and other.getType() == "traffic_light"
                for e, other in ends)  # fmt: skip
-
-
-def _shared_minor_left(lane, minor_links: set[int]) -> bool:
-    conns = lane.getOutgoing()
-    left = [c for c in conns if c.getDirection() in ("l", "L") and c.getTLLinkIndex() in minor_links]
-    return bool(left) and any(c.getDirection() not in ("l", "L", "t") for c in conns)
 
 
 def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path):
@@ -345,7 +427,6 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
                             f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}" '
                             f'speed="{behaviour.give_way_approach_speed_kmh / 3.6:.3f}"/>'
                         )
-    nodes.extend(tls_layout_patches(net))
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getParams().get("turn:lanes"):
             cons.extend(turn_lane_deletions(edge))
@@ -481,4 +562,11 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         os.replace(fixed, final)
         con.unlink()
         runs.append((f"fixes{i + 2}", run))
+    plans = split_signal_plans(read_network(final, programs=True))
+    write_signal_plans(final, plans)
+    fixes["signal_plans_split"] = len(plans)
+    with fix_log.open("a") as fh:
+        fh.write(
+            "".join(f"{t}: a permissive left on a shared lane, its phase split by approach\n" for t in plans)
+        )
     return NetworkBuild(final, placements, junction_kind, signed, tls_approaches, runs, fixes)

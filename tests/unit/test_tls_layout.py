@@ -1,10 +1,11 @@
-"""Which signalised junctions get one green per approach (cosim.scenario.network.tls_layout_patches)."""
+"""Which signal phases get one green per approach (cosim.scenario.network: split_permissive_phases,
+split_signal_plans)."""
 
 from __future__ import annotations
 
 from fake_net import Conn, Edge, Lane, Net, Node, TrafficLight
 
-from cosim.scenario.network import tls_layout_patches
+from cosim.scenario.network import SignalPhase, split_permissive_phases, split_signal_plans
 
 
 def approach(node: Node, *conns: tuple[str, int], **edge) -> Lane:
@@ -17,37 +18,60 @@ def approach(node: Node, *conns: tuple[str, int], **edge) -> Lane:
 J = Node("j", (1.0, 2.0))
 
 
-def test_a_permissive_left_sharing_its_lane_gets_one_green_per_approach():
-    shared = approach(J, ("s", 0), ("l", 1))
-    (patch,) = tls_layout_patches(Net(traffic_lights=[TrafficLight("j", [shared], ["Gg", "yy", "rr"])]))
-    assert 'id="j"' in patch and 'tl="j_incoming"' in patch and 'tlLayout="incoming"' in patch
+def phases(*states: str) -> list[SignalPhase]:
+    """Green phases of 24 s (gap-actuated, 5-50 s), yellow ones of 3 s."""
+    return [SignalPhase(3.0, s) if "y" in s else SignalPhase(24.0, s, 5.0, 50.0) for s in states]
+
+
+def test_a_permissive_left_sharing_its_lane_splits_its_phase_by_approach():
+    # A and B face each other; each lane goes straight (0, 2) and turns left (1, 3) at a permissive green
+    links = {0: ("A", "A_0", "s"), 1: ("A", "A_0", "l"), 2: ("B", "B_0", "s"), 3: ("B", "B_0", "l")}
+    split = split_permissive_phases(phases("GgGg", "yyyy"), links)
+    assert [ph.state for ph in split] == ["GGrr", "yyrr", "rrGG", "rryy"]  # each left protected in its turn
+    assert [(ph.duration_s, ph.min_s, ph.max_s) for ph in split[::2]] == [(12, 5, 25), (12, 5, 25)]
+    assert [ph.duration_s for ph in split[1::2]] == [3.0, 3.0]
+
+
+def test_only_the_phase_with_the_waiting_left_is_split():
+    """Krems 71582001: the main road's shared lefts get a protected phase after their permissive green, so
+    its phase stays; the side roads' phase, whose lefts never get one, is split."""
+    links = {0: ("M", "M_0", "s"), 1: ("M", "M_0", "l"), 2: ("S", "S_0", "s"), 3: ("S", "S_0", "l"),
+             4: ("T", "T_0", "s"), 5: ("T", "T_0", "l")}  # fmt: skip
+    # M's left is permissive, then protected; S and T share a green with permissive lefts only
+    plan = phases("Ggrrrr", "yyrrrr", "rGrrrr", "ryrrrr", "rrGgGg", "rryyyy")
+    split = split_permissive_phases(plan, links)
+    assert [ph.state for ph in split] == ["Ggrrrr", "yyrrrr", "rGrrrr", "ryrrrr", "rrGGrr", "rryyrr",
+                                          "rrrrGG", "rrrryy"]  # fmt: skip
 
 
 def test_a_left_turn_with_its_own_lane_keeps_the_plan():
-    through, left = approach(J, ("s", 0), ("r", 1)), approach(J, ("l", 2))
-    assert (
-        tls_layout_patches(Net(traffic_lights=[TrafficLight("j", [through, left], ["GGg", "rrG", "rrr"])]))
-        == []
-    )
+    links = {0: ("A", "A_0", "s"), 1: ("A", "A_1", "l")}
+    assert split_permissive_phases(phases("Gg", "yy"), links) is None
 
 
 def test_a_protected_left_on_a_shared_lane_keeps_the_plan():
+    links = {0: ("A", "A_0", "s"), 1: ("A", "A_0", "l")}
+    assert split_permissive_phases(phases("Gg", "yy", "rG", "ry"), links) is None
+
+
+def test_a_light_with_a_waiting_left_gets_a_split_plan():
     shared = approach(J, ("s", 0), ("l", 1))
-    assert tls_layout_patches(Net(traffic_lights=[TrafficLight("j", [shared], ["GG", "yy", "rr"])])) == []
+    plans = split_signal_plans(Net(traffic_lights=[TrafficLight("j", [shared], ["Gg", "yy", "rr"])]))
+    assert [ph.state for ph in plans["j"]["0"]] == ["GG", "yy", "rr"]
 
 
 def test_a_light_over_several_junctions_keeps_its_plan():
     a, b = approach(J, ("s", 0), ("l", 1)), approach(Node("k"), ("s", 2))
-    assert tls_layout_patches(Net(traffic_lights=[TrafficLight("joined", [a, b], ["GgG", "rrr"])])) == []
+    assert split_signal_plans(Net(traffic_lights=[TrafficLight("joined", [a, b], ["GgG", "rrr"])])) == {}
 
 
 def test_a_light_a_short_road_away_from_another_keeps_its_plan():
     """One green per approach would starve the short road between two lights (Helsinki 30259739#0)."""
     j = Node("j2")
     shared = approach(j, ("s", 0), ("l", 1), from_node=Node("other_light"), length_m=30.0)
-    assert tls_layout_patches(Net(traffic_lights=[TrafficLight("j2", [shared], ["Gg", "yy", "rr"])])) == []
+    assert split_signal_plans(Net(traffic_lights=[TrafficLight("j2", [shared], ["Gg", "yy", "rr"])])) == {}
     far = Node("j3")
     shared = approach(far, ("s", 0), ("l", 1), from_node=Node("other_light"), length_m=200.0)
-    assert (
-        len(tls_layout_patches(Net(traffic_lights=[TrafficLight("j3", [shared], ["Gg", "yy", "rr"])]))) == 1
-    )
+    assert list(
+        split_signal_plans(Net(traffic_lights=[TrafficLight("j3", [shared], ["Gg", "yy", "rr"])]))
+    ) == ["j3"]
