@@ -267,6 +267,7 @@ class SignalPhase:
 
 
 MIN_GREEN_S = 5.0  # netconvert's minDur of an actuated green
+YELLOW_S = 3.0  # for a split green that had no yellow after it: netconvert's shortest yellow
 
 
 def split_permissive_phases(phases: list[SignalPhase],
@@ -313,18 +314,20 @@ def split_permissive_phases(phases: list[SignalPhase],
             out += [green_phase, *transition]
             continue
         approaches = list(dict.fromkeys(links[i][0] for i in green if i in links))
-        yellow_s = transition[0].duration_s if transition else 3.0
-
-        def share(v: float | None, n: int = len(approaches)) -> float | None:
-            return None if v is None else max(MIN_GREEN_S, round(v / n))
-
+        yellow_s = transition[0].duration_s if transition else YELLOW_S
+        n = len(approaches)
         for approach in approaches:
             mine = {i for i in green if i in links and links[i][0] == approach}
-            n_links = len(green_phase.state)
-            out.append(SignalPhase(share(green_phase.duration_s), "".join("G" if i in mine else "r" for i in range(n_links)),
-                                   share(green_phase.min_s), share(green_phase.max_s)))  # fmt: skip
-            out.append(SignalPhase(yellow_s, "".join("y" if i in mine else "r" for i in range(n_links))))
+            lit = "".join("G" if i in mine else "r" for i in range(len(green_phase.state)))
+            out.append(SignalPhase(_share(green_phase.duration_s, n), lit, _share(green_phase.min_s, n),
+                                   _share(green_phase.max_s, n)))  # fmt: skip
+            out.append(SignalPhase(yellow_s, lit.replace("G", "y")))
     return out
+
+
+def _share(duration_s: float | None, n: int) -> float | None:
+    """One of ``n`` equal shares of a split phase's time, at least MIN_GREEN_S."""
+    return None if duration_s is None else max(MIN_GREEN_S, round(duration_s / n))
 
 
 def split_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
