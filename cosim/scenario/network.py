@@ -5,7 +5,9 @@ maxspeed, one-ways, traffic signals). netconvert ignores ``highway=stop`` / ``hi
 maps those sign nodes (from the OSM pre-pass) onto the junctions and approaches they govern and pass 2
 patches the network: junction types (priority_stop / allway_stop / priority), the priority of signed
 approaches (so that they are the minor road), a 5 km/h passage on give-way connections, and connections
-that contradict OSM ``turn:lanes`` arrows are removed.
+that contradict OSM ``turn:lanes`` arrows are removed. Further netconvert rounds fix the junctions'
+geometry (``cosim.scenario.conflicts``); last, the signal plans get split phasing where a left turn would
+wait at a permissive green on a lane it shares (``split_signal_plans``).
 """
 
 from __future__ import annotations
