@@ -72,6 +72,12 @@ MERGE_NEAR_M = MERGE_LOOK_M + 60.0
 MERGE_MIN_GAP_M, MERGE_FRONT_GAP_M = 2.5, 2.0
 MERGE_TAU_S, MERGE_DECEL_MPS2 = 1.0, 4.5  # SUMO's defaults for passenger cars (vType tau, decel)
 MERGE_PATIENCE_S, MERGE_IMPATIENT_TAU_S, MERGE_IMPATIENT_DECEL_MPS2 = 10.0, 0.5, 9.0  # emergencyDecel 9
+# A car ahead in the new lane driving at least MERGE_STREAM_MPS (a moving stream, not a queue that crawls
+# and may stop again) is judged where it will be when the ego gets there, the ego's own secure gap behind
+# it, and is the ego's leader until it has moved over (``_fall_behind``). Judged where it is, such a car
+# stayed "in the way" of a change put off 20 m at a time while the ego drove beside it at its speed
+# (Monaco 166009792#2, experiment P2 baseline: 150 m in the other lane, two cars came between)
+MERGE_STREAM_MPS = 5.0
 MERGE_LATE_DECEL_MPS2 = 4.5  # stopping short would need harder braking than this: the change goes on
 # No gap, the change near (or too fast to stop short of it): it is put off by MERGE_PUT_OFF_M along the lane
 # the ego is in, as a driver stays in lane until a gap comes (a stream passing, a queue alongside), as long
@@ -94,6 +100,7 @@ MERGE_LET_IN_BEHIND_LEAD_S = 0.0
 # ... and drops back at this much below the ego's speed: matching it, it kept a bumper gap of 2.5 m, short of
 # the secure gap the ego leaves a follower at speed (its tau), and the ego never moved over
 MERGE_LET_IN_DROP_BACK_MPS = 1.5
+LET_IN_STANDING_MPS = 0.5  # the car letting the ego in stands below this speed [m/s]
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -147,14 +154,20 @@ class RouteExtension(Protocol):
     def update(self, ahead_m: float, ego_index: int, ego_edge_left_m: float) -> int | None: ...
 
 
-def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: float) -> float:
+def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: float,
+                   letting_in: str | None = None) -> float:  # fmt: skip
     """Time until the first vehicle ``vid`` must yield to at its next junction reaches the conflict [s]
-    (SUMO's right of way; inf: none within FOE_RADIUS_M)."""
+    (SUMO's right of way; inf: none within FOE_RADIUS_M). ``letting_in``: a car that stops to let ``vid``
+    in (``EgoController._merge``), no foe once it stands: counted, it held the ego at a give-way line
+    while it stood there for the ego (Monaco 1712696757, experiment P2 system_A: 54 s, and five cars came
+    between the lead and the ego)."""
     w = world
     gap = math.inf
     for foe, _, foe_dist, standing_s, held_back in bridge.yield_foes(vid, line_dist_m + 5.0):
         slot = w.slot_of.get(foe)
         if slot is None or foe_dist > FOE_RADIUS_M or (standing_s >= FOE_WAITING_S and held_back):
+            continue
+        if foe == letting_in and w.speed_mps[slot] < LET_IN_STANDING_MPS:
             continue
         gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
     return gap
@@ -475,11 +488,12 @@ class EgoController:
             return {}
         v = max(self.car.state().speed_mps, 0.0)
         d = enter_s - s_front
-        blocked, behind = self._no_gap(w, near, s_front, change, enter_s, v)
+        blocked, behind, ahead = self._no_gap(w, near, s_front, change, enter_s, v)
         if not blocked:
             return {}
+        kw = self._fall_behind(w, ahead, seen)
         held = self._merge_held
-        lead_ahead = self._lead_in_new_lane(w, near, change, s_front)
+        lead_ahead = held is not None and self._lead_in_new_lane(w, near, change, s_front)
         patience_s = MERGE_LET_IN_BEHIND_LEAD_S if lead_ahead else MERGE_LET_IN_AFTER_S
         if (
             held is not None
@@ -500,12 +514,24 @@ class EgoController:
         if (d < MERGE_PUT_OFF_WITHIN_M or late) and change.delay_m < change.max_delay_m:
             self._change_delays[change.edge_index] = change.delay_m + MERGE_PUT_OFF_M
             self._rebuild_path()
-            return {}
+            return kw
         if late:
-            return {}  # committed
+            return kw  # committed
         if held is None or held[0] != change.edge_index:
             self._merge_held = (change.edge_index, w.t_s)
-        return {"merge_dist_m": d}
+        return {**kw, "merge_dist_m": d}
+
+    @staticmethod
+    def _fall_behind(w: World, ahead: tuple[int, float] | None, seen: dict) -> dict:
+        """A car ahead in the lane the ego must move into, in its way there, is its leader (when nearer than
+        the one it has): the driver drops back to slot in behind it. Putting the change off 20 m at a time,
+        the ego drove beside such a car at its speed and never moved over (Monaco 166009792#2, experiment P2
+        baseline: 150 m in the other lane while two cars stayed between the lead and the ego)."""
+        if ahead is None or (seen.get("leader_present") and seen["leader_gap_m"] <= ahead[1]):
+            return {}
+        slot, gap = ahead
+        return {"leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": gap,
+                "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
 
     def _lead_in_new_lane(self, w: World, near: np.ndarray, change: LaneChange, s_front: float) -> bool:
         """Whether the lead car is ahead of the ego's front in the lanes ``change`` enters."""
@@ -530,12 +556,13 @@ class EgoController:
             self.bridge.cap_speed(vid, max(self.car.state().speed_mps - MERGE_LET_IN_DROP_BACK_MPS, 0.0))
 
     def _no_gap(self, w: World, near: np.ndarray, s_front: float, change: LaneChange, enter_s: float,
-                v: float) -> tuple[bool, str | None]:  # fmt: skip
+                v: float) -> tuple[bool, str | None, tuple[int, float] | None]:  # fmt: skip
         """Whether a vehicle in (or coming into) the lanes ``change`` enters leaves the ego no gap when its
-        front reaches ``enter_s``; and the nearest car on those lanes, or still on a lane leading into them,
+        front reaches ``enter_s``; the nearest car on those lanes, or still on a lane leading into them,
         that can still slow to the ego's speed MERGE_MIN_GAP_M behind its rear (the one to let it in; a car
         still coming in passed the ego waiting near the edge's start, Helsinki 194850767#2), or the one already
-        letting it in while it is behind the ego."""
+        letting it in while it is behind the ego; and (slot, bumper gap now [m]) of the nearest car of a moving
+        stream in the way that is ahead of the ego's front already (the one to fall behind)."""
         held = self._merge_held
         impatient = held is not None and held[0] == change.edge_index and w.t_s - held[1] >= MERGE_PATIENCE_S
         tau = MERGE_IMPATIENT_TAU_S if impatient else MERGE_TAU_S
@@ -544,7 +571,8 @@ class EgoController:
         front = enter_s - change.s_start + change.delay_m  # the ego's front then, from the edge's start
         rear = front - self.car.params.length_m
         rear_now = rear - (enter_s - s_front)
-        blocked, behind, behind_p = False, None, -math.inf
+        front_now = front - (enter_s - s_front)
+        blocked, behind, behind_p, ahead = False, None, -math.inf, None
         for slot, _lane, p in self._watched(w, near, change, feeders=True):
             vf = float(w.speed_mps[slot])
             faster = max(0.0, vf - v)  # it gains this on the ego until it has slowed to the ego's speed
@@ -564,11 +592,18 @@ class EgoController:
                 behind, behind_p = w.ids[slot], p
             if p - w.length_m[slot] >= front + MERGE_FRONT_GAP_M:
                 continue  # clear ahead already (a car crawling in a queue may stop again: not as predicted)
+            v_in = min(v_e, max(v, vf))  # behind a car, the ego speeds up no faster than it drives
+            ego_secure = MERGE_MIN_GAP_M + v_in * tau + max(0.0, v_in * v_in - vf * vf) / (2.0 * decel)
+            if vf >= MERGE_STREAM_MPS and p + vf * t_e - w.length_m[slot] >= front + ego_secure:
+                continue  # a moving car ahead: far enough ahead when the ego gets there
             secure = MERGE_MIN_GAP_M + vf * tau + max(0.0, vf * vf - v_e * v_e) / (2.0 * decel)
             if p + vf * t_e <= rear - secure:
                 continue  # far enough behind when the ego gets there
             blocked = True
-        return blocked, behind
+            gap_now = p - w.length_m[slot] - front_now
+            if vf >= MERGE_STREAM_MPS and gap_now > 0.0 and (ahead is None or gap_now < ahead[1]):
+                ahead = (slot, float(gap_now))
+        return blocked, behind, ahead
 
     def _yield_line(self, w: World, s_front: float, tls) -> dict:
         """The next line where the ego must yield (a stop or give-way sign, a minor road, priority to the
@@ -591,7 +626,8 @@ class EgoController:
                 kw.update(sign_kind=kind, sign_dist_m=dist, sign_id=line.junction,
                           junction_movement=movement_of(line.direction, line.into_roundabout, permissive))  # fmt: skip
                 if dist <= YIELD_LOOK_M:
-                    kw["junction_gap_s"] = priority_gap_s(w, self.bridge, EGO_ID, dist)
+                    letting_in = self._let_in[0] if self._let_in is not None else None
+                    kw["junction_gap_s"] = priority_gap_s(w, self.bridge, EGO_ID, dist, letting_in)
                 break
         return kw
 

@@ -308,18 +308,26 @@ class LeadVehicle:
             # decided again every step while the lead can still stop: an ego that slows down (a curve, a
             # car pulling out) may no longer make the green the lead would still get through; and while it
             # stands at the line: the ego may have closed up behind it
-            ego_to_line = dist + float(w.length_m[w.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
             if self._ego_queued_behind():
-                limit = max(v_ego, self.bridge.lane_speed_limit(LEAD_ID))
-                lost = START_UP_LOST_S if v_ego < STAND_MPS else 0.0
-                ego_s = lost + pull_away_arrival(v_ego, limit, ego_to_line)[0]
+                ego_s = self._ego_pulls_up_s(w, v_ego, dist)
             else:
-                ego_s = ego_to_line / max(v_ego, 1.0)
+                ego_s = self._ego_to_line_m(w, dist) / max(v_ego, 1.0)
             green_left = self.bridge.tls_green_left_s(tls_id, link)
             self._stop_at_light = ego_s + LIGHT_MARGIN_S > green_left
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
+
+    def _ego_to_line_m(self, w: World, lead_dist_m: float) -> float:
+        """The ego's front to the stop line ``lead_dist_m`` ahead of the lead [m]."""
+        return lead_dist_m + float(w.length_m[w.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
+
+    def _ego_pulls_up_s(self, w: World, v_ego: float, lead_dist_m: float) -> float:
+        """When the ego, queued behind the lead, reaches the stop line ``lead_dist_m`` ahead of the lead if it
+        goes now [s]: speeding up (EGO_PULL_AWAY_MPS2), after the start-up lost time when it stands."""
+        limit = max(v_ego, self.bridge.lane_speed_limit(LEAD_ID))
+        lost = START_UP_LOST_S if v_ego < STAND_MPS else 0.0
+        return lost + pull_away_arrival(v_ego, limit, self._ego_to_line_m(w, lead_dist_m))[0]
 
     def _yield_cap(self, w: World) -> float | None:
         """Speed cap that holds the lead at a yield line until the ego is right behind it and the gap in the
@@ -340,7 +348,13 @@ class LeadVehicle:
         movement = movement_of(direction)
         needed = critical_gap_s(movement, waited)
         if waited < YIELD_TOGETHER_S and self._ego_follows_next():
-            needed += follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
+            # the ego goes through the same gap, a follow-up headway behind the lead but not before it has
+            # pulled up to the line: with a follow-up headway alone, an ego still 13 m back (a queue moving
+            # up) found the gap closed at the line and a priority car came between them (Helsinki
+            # 127104874, experiment P3)
+            follow_up = follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
+            v_ego = float(w.speed_mps[w.slot_of[EGO_ID]])
+            needed = max(needed, self._ego_pulls_up_s(w, v_ego, dist)) + follow_up
         if self._ego_queued_behind() and priority_gap_s(w, self.bridge, LEAD_ID, dist) >= needed:
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))

@@ -16,7 +16,7 @@ from cosim.ego_mujoco.state import EgoState
 from cosim.phases.ego import EgoController
 from cosim.runconfig import EgoConfig
 from cosim.seeds import stream
-from cosim.world import EGO_ID, SumoEvent, World
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 EDGE_M = 200.0  # every fake edge: 200 m due north
 STEP_S = 0.1
@@ -219,6 +219,25 @@ def test_at_a_give_way_line_the_gap_comes_from_sumos_right_of_way():
     d.bridge.foes = [("foe", 54.0, 50.0, 10.0, True)]  # standing behind another car: it waits itself
     d.step()
     assert d.ego.percept.junction_gap_s == math.inf
+
+
+def test_a_car_standing_to_let_the_ego_in_is_no_foe_at_its_give_way_line():
+    """Monaco 1712696757 (experiment P2): the ego, waiting at a give-way line with a lane change just beyond
+    it, had a priority car stop to let it in; counted as a foe that might go any moment, it held the ego
+    54 s while it stood for the ego, and five cars came between the lead and the ego."""
+    line = StopLine(60.0, "J7", "m", (0.0, 60.0), "s", False, 0)
+    d = Drive(stop_lines=[line])
+    d.place()
+    foe = d.world.add("x")
+    d.bridge.foes = [("x", 54.0, 8.0, 5.0, False)]  # first in line at an open link: it may go any moment
+    d.step()
+    assert d.ego.percept.junction_gap_s == pytest.approx(arrival_time_s(8.0, 0.0))
+    d.ego._let_in = ("x", d.world.t_s, 1)  # it stands for the ego
+    d.step()
+    assert d.ego.percept.junction_gap_s == math.inf
+    d.world.speed_mps[foe] = 3.0  # it drives on: a foe again
+    d.step()
+    assert d.ego.percept.junction_gap_s == pytest.approx(arrival_time_s(8.0, 3.0))
 
 
 def test_an_extended_route_rebuilds_the_path_and_sumo_gets_the_new_stretch():
@@ -585,6 +604,32 @@ def test_behind_the_lead_in_the_new_lane_the_ego_is_let_in_at_once_and_no_stream
             front = 150.0 + d.car.y
             assert not [v for v, f in fronts.items() if v != "lead" and front < f < fronts["lead"]]
     assert waits["lead"] <= 0.2 and waits["scv1"] >= 5.0, waits
+
+
+@pytest.mark.parametrize("speed_mps", [6.0, 7.0, 8.0, 10.0])
+def test_beside_a_car_ahead_in_the_new_lane_at_its_speed_the_ego_drops_back_and_moves_in_behind_it(speed_mps):
+    """Monaco 166009792#2 (experiment P2): a car that had come in ahead of the ego in the lane it must move
+    into drove at the ego's speed, 8 m ahead of its front, the lead farther on. Judged where it was, that car
+    stayed in the way of a change put off 20 m at a time, and the ego drove 150 m beside it (here: it never
+    moved over at 7 m/s, and at 6 m/s only at its last point, in front of the car). It is judged where it
+    will be, and the ego follows it until it has moved over: it drops back and moves in behind it."""
+    d = Drive()
+    _merging(d, 150.0, speed_mps)
+    fronts = {"x1": 150.0 + 8.0 + 4.5, LEAD_ID: 150.0 + 8.0 + 4.5 + 30.0}
+    for vid, front in fronts.items():
+        _in_target_lane(d, vid, front, speed_mps)
+    leaders = set()
+    for _ in range(300):
+        d.step()
+        _stream_on(d, fronts, speed_mps)
+        leaders.add(d.ego.percept.leader_id)
+        if _entering(d):
+            break
+    assert _entering(d), "the ego never moved over"
+    front = 150.0 + d.car.y
+    assert front < 200.0 + 40.0, front  # within 40 m of where the change begins (150 m of room)
+    assert fronts["x1"] - 4.5 - front > 2.5  # behind the car, with room
+    assert "x1" in leaders and d.events == []  # it fell behind that car; nobody was asked to stop
 
 
 def test_a_car_nearer_than_the_one_letting_the_ego_in_is_asked_instead():

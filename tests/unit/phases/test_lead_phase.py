@@ -196,6 +196,25 @@ def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_su
     assert not lead3.waiting
 
 
+def test_the_gap_for_two_counts_from_when_the_ego_has_pulled_up_to_the_line():
+    """Helsinki 127104874 (experiment P3): the lead took a gap of t_c + 1.2 t_f with the ego standing 13 m
+    behind it; by the time the ego had pulled up to the line the gap had closed, and a priority car came
+    between them. The ego needs its follow-up headway after it reaches the line, not after the lead."""
+    waiting = {}
+    for ego_gap_m in (2.0, 14.0):
+        sim = fake_sim(gap_m=ego_gap_m, ego_speed=0.0)
+        sim.bridge.link = ("m", 1.0, "r")  # a right turn from a minor road: t_c 6.2 s, t_f 3.3 s
+        sim.world.add("foe")
+        sim.world.speed_mps[sim.world.slot_of["foe"]] = 10.0
+        sim.bridge.foes = [("foe", 1.0, 105.0, 0.0, False)]  # arrives in 10.5 s: > t_c + 1.2 t_f (10.2 s)
+        lead = _lead(sim)
+        lead.step(sim.world)
+        waiting[ego_gap_m] = lead.waiting
+    # 2 m behind, the ego is at the line in 5.3 s (2 s start-up, 8 m at 1.5 m/s^2), within t_c: the lead
+    # goes; 14 m behind, in 7.2 s, and 7.2 + 4.0 s is more than the gap: the lead waits
+    assert waiting == {2.0: False, 14.0: True}
+
+
 def test_after_waiting_at_a_give_way_line_the_lead_takes_a_gap_for_itself_alone():
     """Monaco -166149542#0 (experiment P1): with priority traffic seen 200 m out, a busy stream never left a
     gap for two (t_c + 1.2 t_f) and the lead stood 120 s at the line with the participant behind it. After
