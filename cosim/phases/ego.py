@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from typing import Protocol
 
 import numpy as np
@@ -22,6 +22,7 @@ from cosim.driver.gap_acceptance import FOE_RADIUS_M, arrival_time_s, movement_o
 from cosim.driver.route import LaneChange, RoutePath
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
+from cosim.phases.courtesy import COURTESY_AFTER_S, CourtesyYield
 from cosim.runconfig import EgoConfig
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
@@ -100,7 +101,8 @@ MERGE_LET_IN_BEHIND_LEAD_S = 0.0
 # ... and drops back at this much below the ego's speed: matching it, it kept a bumper gap of 2.5 m, short of
 # the secure gap the ego leaves a follower at speed (its tau), and the ego never moved over
 MERGE_LET_IN_DROP_BACK_MPS = 1.5
-LET_IN_STANDING_MPS = 0.5  # the car letting the ego in stands below this speed [m/s]
+STOPPED_FOR_MPS = 0.5  # a car that stops for the ego (or the lead) stands below this speed [m/s]
+FIRST_AT_LINE_M = 10.0  # standing this close to a yield line with no car before it, the ego waits first [m]
 
 
 # SUMO link states of the route's connections: 's' stop sign, 'w' all-way stop, 'm' minor road (give-way
@@ -155,19 +157,20 @@ class RouteExtension(Protocol):
 
 
 def priority_gap_s(world: World, bridge: FoesBridge, vid: str, line_dist_m: float,
-                   letting_in: str | None = None) -> float:  # fmt: skip
+                   stopping_for: Collection[str | None] = ()) -> float:  # fmt: skip
     """Time until the first vehicle ``vid`` must yield to at its next junction reaches the conflict [s]
-    (SUMO's right of way; inf: none within FOE_RADIUS_M). ``letting_in``: a car that stops to let ``vid``
-    in (``EgoController._merge``), no foe once it stands: counted, it held the ego at a give-way line
-    while it stood there for the ego (Monaco 1712696757, experiment P2 system_A: 54 s, and five cars came
-    between the lead and the ego)."""
+    (SUMO's right of way; inf: none within FOE_RADIUS_M). ``stopping_for``: cars that stop for ``vid`` (one
+    letting the ego into its lane, ``EgoController._merge``; one letting the pair in, ``CourtesyYield``), no
+    foes once they stand: counted, the car letting the ego in held it at a give-way line while it stood
+    there for the ego (Monaco 1712696757, experiment P2 system_A: 54 s, and five cars came between the lead
+    and the ego)."""
     w = world
     gap = math.inf
     for foe, _, foe_dist, standing_s, held_back in bridge.yield_foes(vid, line_dist_m + 5.0):
         slot = w.slot_of.get(foe)
         if slot is None or foe_dist > FOE_RADIUS_M or (standing_s >= FOE_WAITING_S and held_back):
             continue
-        if foe == letting_in and w.speed_mps[slot] < LET_IN_STANDING_MPS:
+        if foe in stopping_for and w.speed_mps[slot] < STOPPED_FOR_MPS:
             continue
         gap = min(gap, arrival_time_s(foe_dist, float(w.speed_mps[slot])))
     return gap
@@ -226,6 +229,8 @@ class EgoController:
         self._merge_held: tuple[int, float] | None = None
         # the car letting the ego in: (its id, since [s], route index of the lane change's edge)
         self._let_in: tuple[str, float, int] | None = None
+        self.courtesy = CourtesyYield(bridge=bridge, step_s=step_s, emit=emit)  # shared with the lead
+        self._first_at_line: tuple[str, float] | None = None  # (junction, since [s]) the ego waits first
 
     def _start(self, w, slot: int) -> None:
         cx, cy, yaw = frames.sumo_to_mujoco(
@@ -284,7 +289,9 @@ class EgoController:
         self._check_red_light(tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
+        self.courtesy.hold(w, s_front)
         kw.update(self._yield_line(w, s_front, tls))
+        self._ask_courtesy(w, s_front, kw)
         adas = displays
         self.percept = Percept(
             t_s=w.t_s, speed_mps=st.speed_mps, x_m=cx, y_m=cy, yaw_rad=st.yaw_rad, accel_mps2=st.accel_mps2,
@@ -626,10 +633,28 @@ class EgoController:
                 kw.update(sign_kind=kind, sign_dist_m=dist, sign_id=line.junction,
                           junction_movement=movement_of(line.direction, line.into_roundabout, permissive))  # fmt: skip
                 if dist <= YIELD_LOOK_M:
-                    letting_in = self._let_in[0] if self._let_in is not None else None
-                    kw["junction_gap_s"] = priority_gap_s(w, self.bridge, EGO_ID, dist, letting_in)
+                    stopping_for = (self._let_in[0] if self._let_in is not None else None, self.courtesy.car)
+                    kw["junction_gap_s"] = priority_gap_s(w, self.bridge, EGO_ID, dist, stopping_for)
                 break
         return kw
+
+    def _ask_courtesy(self, w: World, s_front: float, kw: dict) -> None:
+        """The ego standing first in line at a yield line (no car between it and the line) for
+        COURTESY_AFTER_S is let in (``CourtesyYield``)."""
+        dist = kw.get("sign_dist_m")
+        first = (
+            dist is not None
+            and dist <= FIRST_AT_LINE_M
+            and self.car.state().speed_mps < STOPPED_FOR_MPS
+            and not (kw.get("leader_present") and kw["leader_gap_m"] < dist)
+        )
+        if not first:
+            self._first_at_line = None
+            return
+        if self._first_at_line is None or self._first_at_line[0] != kw["sign_id"]:
+            self._first_at_line = (kw["sign_id"], w.t_s)
+        elif w.t_s - self._first_at_line[1] >= COURTESY_AFTER_S:
+            self.courtesy.ask(w, EGO_ID, dist, s_front + dist, kw["sign_id"])
 
     def _route_changed(self, first: int) -> None:
         """The route's edges from index ``first`` on are new (extended, or a way round a stalled queue):

@@ -42,6 +42,7 @@ from typing import Protocol
 from cosim.driver import Percept
 from cosim.driver.gap_acceptance import critical_gap_s, follow_up_s, movement_of
 from cosim.driver.route import RoutePath
+from cosim.phases.courtesy import COURTESY_AFTER_S, CourtesyYield
 from cosim.phases.ego import FoesBridge, priority_gap_s, pull_away_arrival
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
@@ -126,11 +127,13 @@ class LeadBridge(FoesBridge, Protocol):
 
 class EgoOnPath(Protocol):
     """What the lead reads of the ego's phase (``cosim.phases.ego.EgoController``): where its front bumper
-    is on its route path, that path, and what its driver perceives (the ego's leader)."""
+    is on its route path, that path, what its driver perceives (the ego's leader) and the priority car that
+    lets the pair in at a yield line."""
 
     s_front_m: float | None
     path: RoutePath
     percept: Percept | None
+    courtesy: CourtesyYield
 
 
 class LeadVehicle:
@@ -355,7 +358,20 @@ class LeadVehicle:
             follow_up = follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
             v_ego = float(w.speed_mps[w.slot_of[EGO_ID]])
             needed = max(needed, self._ego_pulls_up_s(w, v_ego, dist)) + follow_up
-        if self._ego_queued_behind() and priority_gap_s(w, self.bridge, LEAD_ID, dist) >= needed:
+        courtesy = self.ego.courtesy if self.ego is not None else None
+        if (
+            courtesy is not None
+            and waited >= COURTESY_AFTER_S
+            and self._lead_s is not None
+            and self._ego_queued_behind()
+        ):
+            line_s = self._lead_s + float(w.length_m[w.slot_of[LEAD_ID]]) + dist
+            courtesy.ask(w, LEAD_ID, dist, line_s, "its line")
+        stopping_for = (courtesy.car,) if courtesy is not None else ()
+        if (
+            self._ego_queued_behind()
+            and priority_gap_s(w, self.bridge, LEAD_ID, dist, stopping_for) >= needed
+        ):
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 

@@ -13,6 +13,7 @@ from cosim.driver.gap_acceptance import arrival_time_s
 from cosim.driver.route import LaneChange, RoutePath, StopLine
 from cosim.ego_mujoco.params import CarParams
 from cosim.ego_mujoco.state import EgoState
+from cosim.phases.courtesy import COURTESY_AFTER_S
 from cosim.phases.ego import EgoController
 from cosim.runconfig import EgoConfig
 from cosim.seeds import stream
@@ -238,6 +239,28 @@ def test_a_car_standing_to_let_the_ego_in_is_no_foe_at_its_give_way_line():
     d.world.speed_mps[foe] = 3.0  # it drives on: a foe again
     d.step()
     assert d.ego.percept.junction_gap_s == pytest.approx(arrival_time_s(8.0, 3.0))
+
+
+def test_standing_first_at_a_give_way_line_long_enough_the_ego_is_let_in():
+    """A stream that never leaves the critical gap: after COURTESY_AFTER_S first in line, a priority car
+    that can stop comfortably is asked to (CourtesyYield); standing, it is no foe and the ego goes."""
+    line = StopLine(60.0, "J7", "m", (0.0, 60.0), "s", False, 0)
+    d = Drive(stop_lines=[line])
+    d.place(40.0)
+    c = d.world.add("c")
+    d.world.speed_mps[c] = 12.0
+    d.bridge.foes = [("c", 10.0, 50.0, 0.0, False)]  # always 4 s away: below every critical gap
+    for _ in range(int(COURTESY_AFTER_S / STEP_S)):
+        d.step()
+    assert d.car.v < 0.1 and 60.0 - (40.0 + d.car.y) < 1.0  # at the line, waiting
+    assert d.events == []
+    for _ in range(int(12.0 / STEP_S)):  # it took the ego about 7 s to get there
+        d.step()
+    assert [(e.kind, e.vehicle) for e in d.events] == [("courtesy_yield", "c")]
+    assert d.ego.courtesy.car == "c" and d.bridge.caps["c"] < 12.0
+    d.world.speed_mps[c] = 0.0  # it stands short of the junction
+    d.step()
+    assert d.ego.percept.junction_gap_s == math.inf
 
 
 def test_an_extended_route_rebuilds_the_path_and_sumo_gets_the_new_stretch():

@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import pytest
 
 from cosim.driver.route import RoutePath
+from cosim.phases.courtesy import COURTESY_AFTER_S, CourtesyYield
 from cosim.phases.ego import priority_gap_s
 from cosim.phases.lead import DIVERT_KEEP_OFF_M, LANE_FORCE_AFTER_S, YIELD_TOGETHER_S, LeadVehicle
 from cosim.world import EGO_ID, LEAD_ID, World
@@ -20,6 +21,7 @@ class FakeBridge:
 
     def __init__(self):
         self.caps: list[float | None] = []
+        self.other_caps: dict[str, float | None] = {}
         self.tls = None  # (id, link, dist, state)
         self.green_left_s = math.inf
         self.link = None  # (state, dist, direction)
@@ -34,7 +36,9 @@ class FakeBridge:
         self.leaders: dict[str, tuple[str, float]] = {}  # vehicle -> (its leader, gap) in its lane
 
     def cap_speed(self, vid, speed):
-        assert vid == LEAD_ID
+        if vid != LEAD_ID:  # a priority car letting the pair in (CourtesyYield)
+            self.other_caps[vid] = speed
+            return
         self.caps.append(speed)
 
     def lane_speed_limit(self, vid):
@@ -83,9 +87,10 @@ class FakeEgo:
     """What the lead reads of the ego's phase: its front bumper on its route path (None: no path, the gap is
     a straight line), the path and its driver's percept (the ego's leader)."""
 
-    def __init__(self, s_front_m=None, path=None):
+    def __init__(self, courtesy, s_front_m=None, path=None):
         self.s_front_m, self.path = s_front_m, path
         self.percept = None
+        self.courtesy = courtesy
 
     def sees(self, leader):
         self.percept = SimpleNamespace(leader_present=leader is not None, leader_id=leader)
@@ -99,7 +104,9 @@ def fake_sim(gap_m: float, ego_speed: float):
         s = w.add(vid, is_ego=vid == EGO_ID)
         w.x_m[s], w.y_m[s], w.heading_deg[s], w.length_m[s] = 0.0, y, 0.0, 5.0
     w.speed_mps[w.slot_of[EGO_ID]] = ego_speed
-    return SimpleNamespace(world=w, bridge=FakeBridge(), ego=FakeEgo(), events=[])
+    bridge, events = FakeBridge(), []
+    ego = FakeEgo(CourtesyYield(bridge=bridge, step_s=0.1, emit=events.append))
+    return SimpleNamespace(world=w, bridge=bridge, ego=ego, events=events)
 
 
 def _lead(sim, wait_beyond_m: float = 40.0) -> LeadVehicle:
@@ -213,6 +220,30 @@ def test_the_gap_for_two_counts_from_when_the_ego_has_pulled_up_to_the_line():
     # 2 m behind, the ego is at the line in 5.3 s (2 s start-up, 8 m at 1.5 m/s^2), within t_c: the lead
     # goes; 14 m behind, in 7.2 s, and 7.2 + 4.0 s is more than the gap: the lead waits
     assert waiting == {2.0: False, 14.0: True}
+
+
+def test_after_waiting_with_the_ego_behind_it_a_priority_car_lets_the_pair_in():
+    """Monaco -166149542#0 (experiment, every participant): a stream that never left a gap for two held
+    the lead and the ego 30 s; the lead then went alone and the priority cars turning in came between. After
+    COURTESY_AFTER_S a priority car that can stop comfortably stops short of the junction (CourtesyYield);
+    standing, it is no foe, and the lead goes with the ego behind it."""
+    sim = fake_sim(gap_m=2.0, ego_speed=0.0)
+    sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -20.0), (0.0, 200.0)]), 20.0  # the ego's front at y=0
+    sim.bridge.link = ("m", 1.0, "s")
+    c = sim.world.add("c")
+    sim.world.speed_mps[c] = 12.0
+    sim.bridge.foes = [("c", 1.0, 60.0, 0.0, False)]  # arrives in 5 s: < t_c (6.5 s)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting and sim.events == []
+    sim.world.t_s = COURTESY_AFTER_S
+    lead.step(sim.world)
+    assert [(e.kind, e.vehicle) for e in sim.events] == [("courtesy_yield", "c")] and lead.waiting
+    assert sim.bridge.other_caps["c"] is not None  # it is brought to a stop short of the junction ...
+    sim.world.speed_mps[c] = 0.0  # ... and stands
+    sim.world.t_s += 0.1
+    lead.step(sim.world)
+    assert not lead.waiting
 
 
 def test_after_waiting_at_a_give_way_line_the_lead_takes_a_gap_for_itself_alone():

@@ -1,0 +1,104 @@
+"""A priority car lets the participant in after a long wait at a yield line (limited priority).
+
+At a give-way or stop line onto a busy road, a driver who has waited long is let in: a driver on the
+priority road slows and stops short of the junction. Troutbeck & Kako ("Limited priority merge at
+unsignalized intersections", Transp. Res. A 33 (1999)) observed and modelled it; SUMO's own cars get in
+the same way by their impatience (``cosim.phases.impatience``: with time, a queue head accepts gaps that
+make priority traffic brake). The participant's gap acceptance (``cosim.driver.gap_acceptance``) falls
+only to the follow-up headway, and a stream that never leaves one held the lead and the ego at Monaco
+-166149542#0 for 30 s together and the ego 30-50 s more alone (experiment, every participant's route):
+the priority cars that turned in meanwhile came between the lead and the ego.
+
+After ``COURTESY_AFTER_S`` first in line (the lead with the ego queued behind it, or the ego alone), the
+nearest priority car approaching within ``COURTESY_LOOK_M`` that can still stop comfortably short of the
+conflict (``COURTESY_DECEL_MPS2``) is asked to: its speed is capped so that it stops ``STOP_SHORT_M``
+before it, and held there until the ego's front is past the line or ``COURTESY_HOLD_S`` (both of the pair
+go through: the lead's start-up, its crossing and the ego's follow-up headway). Standing, it is no foe
+(``cosim.phases.ego.priority_gap_s``); other priority traffic still is. Each ask is a ``courtesy_yield``
+event. The wait and the ask are assumptions of this simulator (no measured rate): ``COURTESY_AFTER_S``
+lies between a typical wait for a gap (HCM 2010: 10-25 s of control delay for LOS B-C at a two-way stop)
+and the lead's ``YIELD_TOGETHER_S``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Protocol
+
+from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
+
+COURTESY_AFTER_S = 20.0  # first in line this long at a yield line, the waiting driver is let in [s]
+COURTESY_LOOK_M = 80.0  # the priority car asked is at most this far from the conflict [m]
+COURTESY_DECEL_MPS2 = 2.5  # ... and can stop short of it braking at this (a comfortable stop) [m/s^2]
+STOP_SHORT_M = 6.0  # it stops this far before the conflict [m]
+COURTESY_HOLD_S = 15.0  # it stands at most this long for the pair [s]
+MOVING_MPS = 1.0  # a priority car slower than this is queued, not approaching
+
+
+class CourtesyBridge(Protocol):
+    """What the courtesy asks SUMO and tells it (``cosim.sumo_bridge.SumoBridge`` provides it)."""
+
+    def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float, float, bool]]: ...
+
+    def cap_speed(self, vid: str, speed_mps: float | None) -> None: ...
+
+
+class CourtesyYield:
+    """The priority car stopping for the participant (at most one at a time). Ports: SUMO's operations
+    (``bridge``), the step length and ``emit`` for its events; ``ask`` picks the car, ``hold`` runs each step
+    (given the ego's front on its path), ``car`` is the one standing for them."""
+
+    def __init__(self, *, bridge: CourtesyBridge, step_s: float, emit: Callable[[SumoEvent], None]):
+        self.bridge = bridge
+        self.step_s = step_s
+        self.emit = emit
+        self.car: str | None = None
+        self._to_stop_m = 0.0  # how far the car may still drive before it stands [m]
+        self._since = 0.0
+        self._line_s = 0.0  # the yield line on the ego's path [m]
+        self._asked_at: set[tuple[str, float]] = set()  # (who, line) asked once each
+
+    def ask(self, w: World, vid: str, line_dist_m: float, line_s_m: float, junction: str) -> None:
+        """``vid`` has waited first in line ``line_dist_m`` before the line at ``line_s_m`` on the ego's path
+        (``junction``): ask the nearest priority car that can still stop comfortably to stop short."""
+        key = (vid, round(line_s_m))
+        if self.car is not None or key in self._asked_at:
+            return
+        best = None
+        for foe, _, foe_dist, _, held_back in self.bridge.yield_foes(vid, line_dist_m + 5.0):
+            slot = w.slot_of.get(foe)
+            if slot is None or held_back or foe_dist > COURTESY_LOOK_M or foe in (EGO_ID, LEAD_ID):
+                continue
+            v = float(w.speed_mps[slot])
+            room = foe_dist - STOP_SHORT_M
+            if v < MOVING_MPS or room < v * v / (2.0 * COURTESY_DECEL_MPS2):
+                continue  # queued, or too near to stop comfortably: it goes first
+            if best is None or foe_dist < best[1]:
+                best = (foe, foe_dist)
+        if best is None:
+            return
+        self._asked_at.add(key)
+        self.car, self._to_stop_m, self._since, self._line_s = (
+            best[0],
+            best[1] - STOP_SHORT_M,
+            w.t_s,
+            line_s_m,
+        )
+        self.emit(SumoEvent("courtesy_yield", self.car, f"stops for the {vid} at {junction}", best[1]))
+        self.hold(w, None)
+
+    def hold(self, w: World, ego_front_s_m: float | None) -> None:
+        """Keep the car stopping short of the conflict; let it go once the ego is past the line, after
+        COURTESY_HOLD_S, or when it has left the simulation."""
+        if self.car is None:
+            return
+        slot = w.slot_of.get(self.car)
+        passed = ego_front_s_m is not None and ego_front_s_m > self._line_s
+        if slot is None or passed or w.t_s - self._since >= COURTESY_HOLD_S:
+            if slot is not None:
+                self.bridge.cap_speed(self.car, None)
+            self.car = None
+            return
+        self._to_stop_m = max(0.0, self._to_stop_m - float(w.speed_mps[slot]) * self.step_s)
+        self.bridge.cap_speed(self.car, math.sqrt(2.0 * COURTESY_DECEL_MPS2 * self._to_stop_m))
