@@ -12,8 +12,8 @@ the priority cars that turned in meanwhile came between the lead and the ego.
 After ``COURTESY_AFTER_S`` first in line (the lead with the ego queued behind it, or the ego alone), the
 nearest priority car approaching within ``COURTESY_LOOK_M`` that can still stop comfortably short of the
 conflict (``COURTESY_DECEL_MPS2``) is asked to: its speed is capped so that it stops ``STOP_SHORT_M``
-before it, and held there until the ego's front is past the line or ``COURTESY_HOLD_S`` (both of the pair
-go through: the lead's start-up, its crossing and the ego's follow-up headway). Standing, it is no foe
+before it, and held there until the ego's front is past the line (both of the pair go through), or
+``COURTESY_HOLD_S`` at most. Standing, it is no foe
 (``cosim.phases.ego.priority_gap_s``); other priority traffic still is. Each ask is a ``courtesy_yield``
 event. The wait and the ask are assumptions of this simulator (no measured rate): ``COURTESY_AFTER_S``
 lies between a typical wait for a gap (HCM 2010: 10-25 s of control delay for LOS B-C at a two-way stop)
@@ -32,7 +32,9 @@ COURTESY_AFTER_S = 20.0  # first in line this long at a yield line, the waiting 
 COURTESY_LOOK_M = 80.0  # the priority car asked is at most this far from the conflict [m]
 COURTESY_DECEL_MPS2 = 2.5  # ... and can stop short of it braking at this (a comfortable stop) [m/s^2]
 STOP_SHORT_M = 6.0  # it stops this far before the conflict [m]
-COURTESY_HOLD_S = 15.0  # it stands at most this long for the pair [s]
+# it stands until the ego is past the line, at most this long: let go after 15 s, while crossing traffic
+# from the other side still held the lead, the car came between the lead and the ego itself (Monaco seed 2)
+COURTESY_HOLD_S = 30.0
 MOVING_MPS = 1.0  # a priority car slower than this is queued, not approaching
 
 
