@@ -352,9 +352,8 @@ class LeadVehicle:
         needed = critical_gap_s(movement, waited)
         if waited < YIELD_TOGETHER_S and self._ego_follows_next():
             # the ego goes through the same gap, a follow-up headway behind the lead but not before it has
-            # pulled up to the line: with a follow-up headway alone, an ego still 13 m back (a queue moving
-            # up) found the gap closed at the line and a priority car came between them (Helsinki
-            # 127104874, experiment P3)
+            # pulled up to the line: queued up to EGO_CLOSE_M back and standing, it needs the start-up lost
+            # time and several seconds more than a follow-up headway to get there
             follow_up = follow_up_s(movement, LEAD_FOLLOWER_GAP_FACTOR)
             v_ego = float(w.speed_mps[w.slot_of[EGO_ID]])
             needed = max(needed, self._ego_pulls_up_s(w, v_ego, dist)) + follow_up

@@ -204,9 +204,9 @@ def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_su
 
 
 def test_the_gap_for_two_counts_from_when_the_ego_has_pulled_up_to_the_line():
-    """Helsinki 127104874 (experiment P3): the lead took a gap of t_c + 1.2 t_f with the ego standing 13 m
-    behind it; by the time the ego had pulled up to the line the gap had closed, and a priority car came
-    between them. The ego needs its follow-up headway after it reaches the line, not after the lead."""
+    """The lead goes with the ego queued behind it only when the gap lasts until the ego has pulled up to
+    the line (start-up lost time, speeding up) and a follow-up headway more: counted from the lead alone,
+    an ego standing 14 m back would reach the line with less than its follow-up headway left."""
     waiting = {}
     for ego_gap_m in (2.0, 14.0):
         sim = fake_sim(gap_m=ego_gap_m, ego_speed=0.0)
