@@ -81,12 +81,8 @@ class CourtesyYield:
         if best is None:
             return
         self._asked_at.add(key)
-        self.car, self._to_stop_m, self._since, self._line_s = (
-            best[0],
-            best[1] - STOP_SHORT_M,
-            w.t_s,
-            line_s_m,
-        )
+        self.car, self._since, self._line_s = best[0], w.t_s, line_s_m
+        self._to_stop_m = best[1] - STOP_SHORT_M
         self.emit(SumoEvent("courtesy_yield", self.car, f"stops for the {vid} at {junction}", best[1]))
         self.hold(w, None)
 

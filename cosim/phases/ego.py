@@ -291,7 +291,7 @@ class EgoController:
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
         self.courtesy.hold(w, s_front)
         kw.update(self._yield_line(w, s_front, tls))
-        self._ask_courtesy(w, s_front, kw)
+        self._ask_courtesy(w, s_front, st.speed_mps, kw)
         adas = displays
         self.percept = Percept(
             t_s=w.t_s, speed_mps=st.speed_mps, x_m=cx, y_m=cy, yaw_rad=st.yaw_rad, accel_mps2=st.accel_mps2,
@@ -638,14 +638,14 @@ class EgoController:
                 break
         return kw
 
-    def _ask_courtesy(self, w: World, s_front: float, kw: dict) -> None:
+    def _ask_courtesy(self, w: World, s_front: float, speed_mps: float, kw: dict) -> None:
         """The ego standing first in line at a yield line (no car between it and the line) for
         COURTESY_AFTER_S is let in (``CourtesyYield``)."""
         dist = kw.get("sign_dist_m")
         first = (
             dist is not None
             and dist <= FIRST_AT_LINE_M
-            and self.car.state().speed_mps < STOPPED_FOR_MPS
+            and speed_mps < STOPPED_FOR_MPS
             and not (kw.get("leader_present") and kw["leader_gap_m"] < dist)
         )
         if not first:
