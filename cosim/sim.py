@@ -310,7 +310,7 @@ class Simulation:
                 ("sumo", self._start)
             )  # ... the ego and the lead placed when due, their start kept clear
         if self.ego is not None:
-            s.append(("sumo", self._ego_own_state))  # ... the ego's speed and acceleration are MuJoCo's
+            s.append(("sumo", self._ego_own_state))  # ... the ego's pose, speed and acceleration are MuJoCo's
         if self.vanet is not None:  # vanet: CAMs, medium access, the aether, the OBUs
             s.append(("vanet", self._vanet_step))
         if self.adas is not None:  # adas: systems A and B on what the ego could know
