@@ -15,7 +15,9 @@ yields to the higher-ranked one (major before minor, straight before right befor
 ``turnaround_deletions`` removes U-turns at junctions that are not dead ends (netconvert's turnarounds, and
 turns onto another road that reverse the heading within a car's length): on a two-lane street a car cannot
 turn on the spot, and SUMO's turnaround lane sweeps across the movements of the whole junction.
-``separated_shapes`` gives custom internal-lane shapes to movements that run side by side closer than two car
+``sibling_change_bars`` bars lane changes inside a junction into a lane that another movement of the same
+incoming lane runs beside (SUMO's lane changer does not see that one). ``separated_shapes`` gives custom
+internal-lane shapes to movements that run side by side closer than two car
 widths without crossing: SUMO relates foes inside a junction only by a crossing point, so such a pair is never
 kept apart there, foes or not.
 """
@@ -393,6 +395,65 @@ def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH
             if c is not None:
                 lines.append(_delete_line(c))
                 report.append((jid, c.from_lane, c.to_lane, round(d, 2)))
+    return lines, report
+
+
+def sibling_change_bars(net_file: Path) -> tuple[list[str], list[tuple[str, str]]]:
+    """``<connection>`` lines that bar changing lanes, inside a junction, into a lane that another movement
+    of the same incoming lane runs beside.
+
+    Where one incoming lane feeds two roads (a slip road leaving at a shallow angle), netconvert builds the
+    two internal lanes from one point, side by side for most of the junction (Krems 448934090: 1.5 m apart
+    17 m in, parting only after 31 m). SUMO keeps cars on these siblings apart as leader and follower until
+    they part (MSLink::computeDistToDivergence), but its lane changer does not look at them: a car standing on
+    the other lane of the straight movement's internal edge changed into the lane beside the slip road's,
+    onto the car standing there (plain SUMO on Krems, 6 seeds x 600 s: 3 of the 9 collisions, and one more at
+    83637441). Such a change is barred (``changeLeft`` / ``changeRight`` "authority": only that class, which
+    ignores the restriction anyway, may change; netconvert refuses an empty list); changes elsewhere in
+    junctions stay, since barring them all raised Krems' teleports by half. Returns the lines and (junction, internal lane, the change barred on it)."""
+    shapes, junctions, _ = _read(net_file)
+    edge_lanes: dict[str, list[str]] = {}
+    for lane in shapes:
+        if lane.startswith(":"):
+            edge_lanes.setdefault(lane.rsplit("_", 1)[0], []).append(lane)
+    for lanes in edge_lanes.values():
+        lanes.sort(key=lambda lane: int(lane.rsplit("_", 1)[1]))
+    bars: dict[str, dict[str, str]] = {}  # internal lane -> the change attribute barred on it
+    conn_of: dict[str, _Conn] = {}
+    junction_of: dict[str, str] = {}
+    for jid, conns, _foes in junctions:
+        unique = [c for c in {id(c): c for c in conns if c is not None}.values()]
+        for c in unique:
+            conn_of[c.chain[0]] = c
+            junction_of[c.chain[0]] = jid
+        for c in unique:
+            lane = c.chain[0]
+            edge = lane.rsplit("_", 1)[0]
+            lanes = edge_lanes.get(edge, [])
+            if len(lanes) < 2 or not any(d.from_lane == c.from_lane and d.chain[0].rsplit("_", 1)[0] != edge
+                                         for d in unique):  # fmt: skip
+                continue
+            i = lanes.index(lane)
+            if i > 0:  # the lane to its right changes left into it
+                bars.setdefault(lanes[i - 1], {})["changeLeft"] = '"authority"'
+            if i + 1 < len(lanes):
+                bars.setdefault(lanes[i + 1], {})["changeRight"] = '"authority"'
+    # a later round of fixes reads a network that has them already
+    have = {(lane.get("id"), k) for lane in ET.parse(net_file).getroot().iter("lane")
+            for k in ("changeLeft", "changeRight") if lane.get(k) is not None}  # fmt: skip
+    lines, report = [], []
+    for lane, attrs in sorted(bars.items()):
+        c = conn_of.get(lane)
+        attrs = {k: v for k, v in attrs.items() if (lane, k) not in have}
+        if c is None or not attrs:
+            continue
+        report += [(junction_of[lane], lane, k) for k in sorted(attrs)]
+        lines.append(
+            f"    <connection from={quoteattr(c.from_edge)} to={quoteattr(c.to_edge)} "
+            f'fromLane="{c.from_lane.rsplit("_", 1)[1]}" toLane="{c.to_lane.rsplit("_", 1)[1]}" '
+            + " ".join(f"{k}={v}" for k, v in sorted(attrs.items()))
+            + "/>"
+        )
     return lines, report
 
 

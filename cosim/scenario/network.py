@@ -29,6 +29,7 @@ from cosim.scenario.conflicts import (
     internal_stop_fixes,
     overlapping_end_deletions,
     separated_shapes,
+    sibling_change_bars,
     turnaround_deletions,
 )
 from cosim.scenario.osm import OsmInfo, SignNode
@@ -492,8 +493,9 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
     prohibitions, pairs = geometric_prohibitions(net_file, deleted)
     stops, moved = internal_stop_fixes(net_file)
     shapes, separated = separated_shapes(net_file)
+    bars, barred = sibling_change_bars(net_file)
     body = con_file.read_text().replace("</connections>\n", "") if con_file.exists() else "<connections>\n"
-    body = _merge_connection_lines(body + "\n".join(stops + shapes))
+    body = _merge_connection_lines(body + "\n".join(stops + shapes + bars))
     con_file.write_text(body + "\n" + "\n".join(deletions + fan_outs + prohibitions) + "\n</connections>\n")
     with log.open("a") as fh:
         fh.write(
@@ -505,12 +507,15 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
                 f"{j} {a}->{b}: deleted, its lane end {d} m from another movement's\n"
                 for j, a, b, d in overlapping
             )
+            + "".join(
+                f"{j} {lane}: {k} barred (into a lane a sibling runs beside)\n" for j, lane, k in barred
+            )
         )
     return {"turnarounds_removed": len(deletions) - len(merges) - len(overlaps),
             "lane_fan_outs_removed": len(fan_outs), "crossing_merge_lanes_removed": len(merges),
             "overlapping_lanes_removed": len(overlaps),
             "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved),
-            "internal_lanes_reshaped": len(shapes)}  # fmt: skip
+            "internal_lanes_reshaped": len(shapes), "sibling_lane_changes_barred": len(bars)}  # fmt: skip
 
 
 def _check(tool: str, run: ToolRun, osm_path: Path) -> None:

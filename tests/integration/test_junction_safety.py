@@ -28,6 +28,7 @@ from cosim.scenario.conflicts import (
     internal_stop_fixes,
     overlapping_end_deletions,
     separated_shapes,
+    sibling_change_bars,
     turnaround_deletions,
 )
 
@@ -121,3 +122,35 @@ def test_a_turn_that_doubles_back_within_a_car_length_is_a_u_turn(tmp_path):
     deleted = turnaround_deletions(net)
     assert [line for line in deleted if 'from="SC" to="CX"' in line], deleted
     assert not [line for line in deleted if 'to="CX"' in line and 'from="SC"' not in line], deleted
+
+
+def test_no_lane_change_inside_a_junction_into_the_lane_a_slip_road_runs_beside(tmp_path):
+    """Krems 448934090: lane 0 of a two-lane road feeds both the road on and a slip road leaving at a shallow
+    angle, and the two internal lanes run side by side through the junction. SUMO's lane changer does not
+    look at the slip road's lane: a car on the road's other internal lane changed into the one beside it,
+    onto a car standing there. That change is barred; the road without a slip road keeps its changes."""
+    from cosim.sumo_bridge.tools import run_tool
+    from tests.plain_net import plain_net
+
+    nodes = {"W": (-200, 0), "C": (0, 0), "E": (200, 0), "R": (200, -25)}
+    edges = {"WC": ("W", "C", 2, 2), "CE": ("C", "E", 2, 2), "CR": ("C", "R", 1)}
+    net_file = plain_net(tmp_path, nodes, edges, priority_nodes=["C"])
+    net = sumolib.net.readNet(str(net_file), withInternal=True)
+    from_lane0 = {c.getTo().getID() for c in net.getEdge("WC").getLane(0).getOutgoing()}
+    assert from_lane0 == {"CE", "CR"}, from_lane0  # the shared lane the issue is about
+    lines, barred = sibling_change_bars(net_file)
+    # the straight movement's internal edge has two lanes; no change from lane 1 into lane 0 beside CR's
+    assert len(lines) == 1 and 'fromLane="1"' in lines[0] and 'changeRight="authority"' in lines[0], lines
+    assert [k for _j, _lane, k in barred] == ["changeRight"], barred
+    con = tmp_path / "bars.con.xml"
+    con.write_text("<connections>\n" + "\n".join(lines) + "\n</connections>\n")
+    fixed = tmp_path / "fixed.net.xml"
+    run = run_tool("netconvert", ["-s", str(net_file), "-x", str(con), "-o", str(fixed)])
+    assert run.returncode == 0, run.log
+    assert "changeRight" in fixed.read_text()
+    assert sibling_change_bars(fixed) == ([], [])  # a later round of fixes adds nothing
+    # the same road without the slip road: nothing barred
+    (tmp_path / "plain").mkdir()
+    no_slip = plain_net(tmp_path / "plain", {k: nodes[k] for k in "WCE"}, {k: edges[k] for k in ("WC", "CE")},
+                        priority_nodes=["C"])  # fmt: skip
+    assert sibling_change_bars(no_slip) == ([], [])
