@@ -17,9 +17,9 @@ turns onto another road that reverse the heading within a car's length): on a tw
 turn on the spot, and SUMO's turnaround lane sweeps across the movements of the whole junction.
 ``sibling_change_bars`` bars lane changes inside a junction into a lane that another movement of the same
 incoming lane runs beside (SUMO's lane changer does not see that one). ``separated_shapes`` gives custom
-internal-lane shapes to movements that run side by side closer than two car
-widths without crossing: SUMO relates foes inside a junction only by a crossing point, so such a pair is never
-kept apart there, foes or not.
+internal-lane shapes to movements that run side by side closer than two car widths without crossing: SUMO
+relates foes inside a junction only by a crossing point, so such a pair is never kept apart there, foes or
+not.
 """
 
 from __future__ import annotations
@@ -398,7 +398,7 @@ def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH
     return lines, report
 
 
-def sibling_change_bars(net_file: Path) -> tuple[list[str], list[tuple[str, str]]]:
+def sibling_change_bars(net_file: Path) -> tuple[list[str], list[tuple[str, str, str]]]:
     """``<connection>`` lines that bar changing lanes, inside a junction, into a lane that another movement
     of the same incoming lane runs beside.
 
@@ -410,7 +410,8 @@ def sibling_change_bars(net_file: Path) -> tuple[list[str], list[tuple[str, str]
     onto the car standing there (plain SUMO on Krems, 6 seeds x 600 s: 3 of the 9 collisions, and one more at
     83637441). Such a change is barred (``changeLeft`` / ``changeRight`` "authority": only that class, which
     ignores the restriction anyway, may change; netconvert refuses an empty list); changes elsewhere in
-    junctions stay, since barring them all raised Krems' teleports by half. Returns the lines and (junction, internal lane, the change barred on it)."""
+    junctions stay, since barring them all raised Krems' teleports by half. Returns the lines and
+    (junction, internal lane, the change barred on it)."""
     shapes, junctions, _ = _read(net_file)
     edge_lanes: dict[str, list[str]] = {}
     for lane in shapes:
