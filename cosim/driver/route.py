@@ -309,6 +309,12 @@ class RoutePath:
 # where it would cross several lanes within a few metres, blind to the cars in them (Munich 209452710#0:
 # three lanes in 25 m in front of a car at 16 m/s)
 LANE_CHANGE_COST_M = 100.0
+# ... and every edge at least this long is long enough: a lane change takes 4.6 s on average (Toledo &
+# Zohar, Transp. Res. Rec. 1999, 2007), 64 m at 50 km/h. Among edges that long the path changes on the
+# first: deferred to a longer edge after a junction, it left the pair queued at a light in the lane it was
+# to leave, while the cars of the lane it needed passed them and came between (Helsinki 25523727#0 ->
+# 194850767#2, experiment P1 system_A: the lead was the ego's leader 56 % of the phase)
+CHANGE_ROOM_M = 65.0
 
 
 def _via_chain(net, conn) -> list:
@@ -348,7 +354,7 @@ def _for_cars(lane) -> bool:
 
 
 def _change_cost(lanes: int, edge_length_m: float) -> float:
-    return lanes * (1.0 + LANE_CHANGE_COST_M / max(edge_length_m, 1.0))
+    return lanes * (1.0 + LANE_CHANGE_COST_M / min(max(edge_length_m, 1.0), CHANGE_ROOM_M))
 
 
 class _LanePlan:
@@ -391,7 +397,8 @@ class _LanePlan:
 
         def total(a: int) -> tuple[float, int]:
             change = 0.0 if first else _change_cost(abs(a - arriving), length)
-            return (round(change + options[a][0], 9), abs(a - arriving) if not first else a)
+            # as cheap either way: change here rather than on a later edge (CHANGE_ROOM_M)
+            return (round(change + options[a][0], 9), -abs(a - arriving) if not first else a)
 
         a = min(options, key=total)
         return edge.getLane(a), options[a][1]

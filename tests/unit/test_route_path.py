@@ -92,6 +92,21 @@ def test_the_path_changes_lanes_on_the_long_road_before_a_short_one_it_must_leav
     assert np.allclose(on_b[:, 1], 0.0)  # no lane change on the short edge
 
 
+def test_the_path_changes_lanes_on_the_first_edge_long_enough_not_after_the_junction():
+    """Helsinki 25523727#0 (75 m, to a light) -> 194850767#2 (199 m): the turn at the end leaves from lane 1,
+    and both lanes go straight on through the light. The path moves over on the 75-m approach, so the pair
+    queues at the light in the lane it needs; deferred to the longer road (the cost per metre of edge
+    alone), it queued in lane 0 while the cars of lane 1 passed and came between the lead and the ego."""
+    z, a = Edge.straight("z", -100, 0, 1), Edge.straight("a", 0, 75, 2)
+    b, c = Edge.straight("b", 75, 275, 2), Edge.straight("c", 275, 400, 1)
+    z.out[a] = [Conn(z.lanes[0], a.lanes[0])]
+    a.out[b] = [Conn(a.lanes[i], b.lanes[i]) for i in range(2)]
+    b.out[c] = [Conn(b.lanes[1], c.lanes[0])]
+    path = RoutePath.from_network(Net([z, a, b, c]), ["z", "a", "b", "c"])
+    assert _lanes(path) == [("z", 0), ("a", 1), ("b", 1), ("c", 0)]
+    assert [change.edge_index for change in path.lane_changes] == [1]  # none after the junction
+
+
 def test_a_turn_split_at_its_waiting_point_is_followed_through_both_internal_lanes():
     """A left turn with an internal junction drives two internal lanes, the second one curved (Munich
     :cluster_3424935801_..._15): the path takes both instead of cutting the curve straight to the next road."""
