@@ -310,7 +310,7 @@ class RoutePath:
 # three lanes in 25 m in front of a car at 16 m/s)
 LANE_CHANGE_COST_M = 100.0
 # ... and every edge at least this long is long enough: a lane change takes 4.6 s on average (Toledo &
-# Zohar, Transp. Res. Rec. 1999, 2007), 64 m at 50 km/h. Among edges that long the path changes on the
+# Zohar 2007, Transp. Res. Rec. 1999: 71-78), 64 m at 50 km/h. Among edges that long the path changes on the
 # first: deferred to a longer edge after a junction, it left the pair queued at a light in the lane it was
 # to leave, while the cars of the lane it needed passed them and came between (Helsinki 25523727#0 ->
 # 194850767#2, experiment P1 system_A: the lead was the ego's leader 56 % of the phase)
