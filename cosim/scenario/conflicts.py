@@ -109,11 +109,16 @@ def _rank(c: _Conn) -> tuple:
     return (0 if c.state in _MAJOR else 1, _DIR_RANK.get(c.direction, 6))
 
 
-def _delete_line(c: _Conn) -> str:
+def _ref(c: _Conn) -> str:
+    """The attributes that name connection ``c`` in a connection file."""
     return (
-        f"    <delete from={quoteattr(c.from_edge)} to={quoteattr(c.to_edge)} "
-        f'fromLane="{c.from_lane.rsplit("_", 1)[1]}" toLane="{c.to_lane.rsplit("_", 1)[1]}"/>'
+        f"from={quoteattr(c.from_edge)} to={quoteattr(c.to_edge)} "
+        f'fromLane="{c.from_lane.rsplit("_", 1)[1]}" toLane="{c.to_lane.rsplit("_", 1)[1]}"'
     )
+
+
+def _delete_line(c: _Conn) -> str:
+    return f"    <delete {_ref(c)}/>"
 
 
 def _lanes_into(conns: list[_Conn]) -> dict[tuple[str, str], set[str]]:
@@ -277,11 +282,7 @@ def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2
             p -= 0.25
         if best is None or best >= cont - 0.2:
             continue
-        lines.append(
-            f"    <connection from={quoteattr(waiting.from_edge)} to={quoteattr(waiting.to_edge)} "
-            f'fromLane="{waiting.from_lane.rsplit("_", 1)[1]}" toLane="{waiting.to_lane.rsplit("_", 1)[1]}" '
-            f'contPos="{max(best, 0.1):.2f}"/>'
-        )
+        lines.append(f'    <connection {_ref(waiting)} contPos="{max(best, 0.1):.2f}"/>')
         moved.append((waiting.chain[0], round(cont, 2), round(best, 2)))
     return lines, moved
 
@@ -450,10 +451,7 @@ def sibling_change_bars(net_file: Path) -> tuple[list[str], list[tuple[str, str,
             continue
         report += [(junction_of[lane], lane, k) for k in sorted(attrs)]
         lines.append(
-            f"    <connection from={quoteattr(c.from_edge)} to={quoteattr(c.to_edge)} "
-            f'fromLane="{c.from_lane.rsplit("_", 1)[1]}" toLane="{c.to_lane.rsplit("_", 1)[1]}" '
-            + " ".join(f"{k}={v}" for k, v in sorted(attrs.items()))
-            + "/>"
+            f"    <connection {_ref(c)} " + " ".join(f"{k}={v}" for k, v in sorted(attrs.items())) + "/>"
         )
     return lines, report
 
@@ -591,11 +589,7 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
             else:
                 continue
             shape = " ".join(f"{x:.2f},{y:.2f}" for x, y in coords)
-            lines.append(
-                f"    <connection from={quoteattr(c.from_edge)} to={quoteattr(c.to_edge)} "
-                f'fromLane="{c.from_lane.rsplit("_", 1)[1]}" toLane="{c.to_lane.rsplit("_", 1)[1]}" '
-                f'shape="{shape}"/>'
-            )
+            lines.append(f'    <connection {_ref(c)} shape="{shape}"/>')
         for a, b, d in pairs:
             after = shapely.LineString(cur[id(a)]).distance(shapely.LineString(cur[id(b)]))
             report.append((jid, a.chain[0], b.chain[0], round(d, 2), round(after, 2)))
