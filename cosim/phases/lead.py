@@ -106,7 +106,9 @@ class LeadBridge(FoesBridge, Protocol):
 
     def next_tls(self, vid: str) -> tuple[str, int, float, str] | None: ...
 
-    def tls_green_left_s(self, tls_id: str, link_index: int) -> float: ...
+    def tls_green_left_s(self, tls_id: str, link_index: int) -> tuple[float, float]: ...
+
+    def tls_max_gap_s(self, tls_id: str) -> float: ...
 
     def next_link(self, vid: str) -> tuple[str, float, str] | None: ...
 
@@ -311,12 +313,19 @@ class LeadVehicle:
             # decided again every step while the lead can still stop: an ego that slows down (a curve, a
             # car pulling out) may no longer make the green the lead would still get through; and while it
             # stands at the line: the ego may have closed up behind it
-            if self._ego_queued_behind():
+            queued = self._ego_queued_behind()
+            if queued:
                 ego_s = self._ego_pulls_up_s(w, v_ego, dist)
             else:
                 ego_s = self._ego_to_line_m(w, dist) / max(v_ego, 1.0)
-            green_left = self.bridge.tls_green_left_s(tls_id, link)
-            self._stop_at_light = ego_s + LIGHT_MARGIN_S > green_left
+            earliest, latest = self.bridge.tls_green_left_s(tls_id, link)
+            # an actuated green lasts while cars cross its detector at most max-gap apart: the lead's own
+            # platoon, the ego queued behind it or following within max-gap, holds it green to its longest.
+            # Reckoned to its earliest end, a green in extension ended "now" every step, and the lead stood
+            # at the line, its queue holding the green, until the green's longest ran out (Krems 71582001:
+            # 50 s, then a whole red; the ego 10 m behind, a car between them)
+            platoon = queued or self.gap_m <= self.bridge.tls_max_gap_s(tls_id) * max(v_ego, 1.0)
+            self._stop_at_light = ego_s + LIGHT_MARGIN_S > (latest if platoon else earliest)
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))

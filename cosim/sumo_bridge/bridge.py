@@ -43,6 +43,17 @@ MATCH_THRESHOLD_M = 5.0  # an ego pose farther than this from every lane's centr
 # behind. At rest the ego's SUMO twin therefore keeps its pose until it moves by more than this [m].
 STANDSTILL_JITTER_M = 0.01
 STANDSTILL_SPEED_MPS = 0.05
+# SUMO's default max-gap of an actuated light: a green is extended while vehicles cross its detectors at most
+# this far apart (sumo.dlr.de/docs/Simulation/Traffic_Lights.html, "Actuated Traffic Lights") [s]
+ACTUATED_MAX_GAP_S = 3.0
+
+
+def _phase_span(phase) -> tuple[float, float, str]:
+    """(shortest, longest) duration [s] and state of a light's phase: its minDur and maxDur when they bound
+    the duration (an actuated phase), its duration twice otherwise (a fixed one: libsumo gives them -1 or the
+    duration)."""
+    d, lo, hi = float(phase.duration), float(phase.minDur), float(phase.maxDur)
+    return (lo, hi, phase.state) if 0.0 <= lo <= d <= hi < math.inf else (d, d, phase.state)
 
 
 def _allows_cars(allowed: list[str] | tuple[str, ...]) -> bool:
@@ -125,7 +136,7 @@ class SumoBridge:
         self._ego_pose: tuple[float, float, float] | None = None  # last pose written to SUMO
         self._colliding: set[tuple[str, str]] = set()
         self._removed: list[str] = []  # removed by cosim this step
-        self._tls_logics: dict[tuple[str, str], list[tuple[float, str]] | None] = {}
+        self._tls_logics: dict[tuple[str, str], list[tuple[float, float, str]] | None] = {}
         self._incoming: dict[str, list[tuple[str, str, float]]] | None = None  # lane -> lanes into it
         self._lc_mode_before: dict[str, int] = {}  # vehicle -> its lane-change mode while keep_lane forces
 
@@ -530,30 +541,45 @@ class SumoBridge:
         """The speed the vehicle may drive on its lane (limit x its speed factor) [m/s]."""
         return self._sumo.vehicle.getAllowedSpeed(vid)
 
-    def tls_green_left_s(self, tls_id: str, link_index: int) -> float:
-        """How long the light's link stays green (G or g) from now [s] following its programme (0 when it is
-        not green now; inf when it never changes)."""
+    def tls_green_left_s(self, tls_id: str, link_index: int) -> tuple[float, float]:
+        """(earliest, latest) time from now [s] at which the light's link stops being green (G or g),
+        following its programme: (0, 0) when it is not green now, inf when it never changes. A fixed
+        programme gives one time. A gap-actuated green ends between its minDur and maxDur: SUMO extends it
+        while vehicles cross the lane's detector at most ``max-gap`` apart (``tls_max_gap_s``), and
+        ``getNextSwitch`` is only its next check (Krems 71582001: 0-4 s ahead throughout a 50-s green)."""
         tl = self._sumo.trafficlight
         logic = self._tls_logic(tls_id, tl.getProgram(tls_id))
         if logic is None:
-            return math.inf
+            return math.inf, math.inf
         phase = tl.getPhase(tls_id)
-        if logic[phase][1][link_index] not in "Gg":
-            return 0.0
-        left = tl.getNextSwitch(tls_id) - self._sumo.simulation.getTime()
+        if logic[phase][2][link_index] not in "Gg":
+            return 0.0, 0.0
+        spent = tl.getSpentDuration(tls_id)
+        min_s, max_s, _ = logic[phase]
+        earliest = max(tl.getNextSwitch(tls_id) - self._sumo.simulation.getTime(), min_s - spent, 0.0)
+        latest = max(earliest, max_s - spent)
         for k in range(1, len(logic)):
-            duration, state = logic[(phase + k) % len(logic)]
+            min_s, max_s, state = logic[(phase + k) % len(logic)]
             if state[link_index] not in "Gg":
-                return left
-            left += duration
-        return math.inf
+                return earliest, latest
+            earliest, latest = earliest + min_s, latest + max_s
+        return math.inf, math.inf
 
-    def _tls_logic(self, tls_id: str, program: str) -> list[tuple[float, str]] | None:
+    def tls_max_gap_s(self, tls_id: str) -> float:
+        """The longest time gap between vehicles at a detector that still extends the light's actuated green
+        [s] (its ``max-gap`` parameter; SUMO's default 3.0 s, Simulation/Traffic_Lights, "Actuated Traffic
+        Lights")."""
+        value = self._sumo.trafficlight.getParameter(tls_id, "max-gap")
+        return float(value) if value else ACTUATED_MAX_GAP_S
+
+    def _tls_logic(self, tls_id: str, program: str) -> list[tuple[float, float, str]] | None:
+        """(shortest [s], longest [s], state) of each phase of the programme: minDur and maxDur for an
+        actuated phase, the duration twice for a fixed one."""
         key = (tls_id, program)
         if key not in self._tls_logics:
             logic = next((lg for lg in self._sumo.trafficlight.getAllProgramLogics(tls_id) if lg.programID == program),
                          None)  # fmt: skip
-            self._tls_logics[key] = [(p.duration, p.state) for p in logic.phases] if logic else None
+            self._tls_logics[key] = [_phase_span(p) for p in logic.phases] if logic else None
         return self._tls_logics[key]
 
     def min_gap(self, vid: str) -> float:

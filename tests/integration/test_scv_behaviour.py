@@ -122,3 +122,49 @@ def test_scv_keeps_its_reaction_time_behind_a_leader(tmp_path, sumo_closed):
             gaps.append((leader[1] + 2.5) / libsumo.vehicle.getSpeed("f"))  # getLeader excludes minGap
     expected = ScvBehaviour().time_gap_s + ScvBehaviour().min_gap_m / 12.0
     assert np.mean(gaps) == pytest.approx(expected, abs=0.15)
+
+
+def test_an_actuated_greens_end_lies_between_the_bounds_the_bridge_gives(tmp_path):
+    """SUMO's getNextSwitch of a gap-actuated light is only its next check: 0-4 s ahead all through a 50-s
+    green (Krems 71582001), and a lead trusting it stood at the line through the green. The bridge gives the
+    green's (earliest, latest) end; with a stream 2 s apart (below the default max-gap, 3 s) SUMO extends the
+    green to its maxDur, and at every step of it the true end lies between the bounds."""
+    from cosim.sumo_bridge.bridge import ACTUATED_MAX_GAP_S, SumoBridge
+    from cosim.world import World
+
+    sk = crossroads(centre_tags={"highway": "traffic_signals"})
+    scn = scenario(sk, tmp_path)
+    e_in, e_out = edges_between(scn.net_file, sk, "w", "c"), edges_between(scn.net_file, sk, "c", "e")
+    bridge = SumoBridge(scn.sumocfg, seed=1, step_s=0.1, extra_args=("--route-files", ""))
+    try:
+        for k in range(60):
+            bridge.add_vehicle(f"v{k}", [e_in, e_out], depart=2.0 * k, depart_speed="max")
+        (tls,) = libsumo.trafficlight.getIDList()
+        logic = libsumo.trafficlight.getAllProgramLogics(tls)[0]
+        assert any(p.minDur < p.maxDur for p in logic.phases), "netconvert builds gap-actuated lights here"
+        assert bridge.tls_max_gap_s(tls) == ACTUATED_MAX_GAP_S
+        link = next(k for k, links in enumerate(libsumo.trafficlight.getControlledLinks(tls))
+                    if links and links[0][0].startswith(e_in) and links[0][1].startswith(e_out))  # fmt: skip
+        world = World(128)
+        bounds, began, ended, was_green = [], None, None, True
+        for _ in range(3000):
+            bridge.step(world)
+            t = libsumo.simulation.getTime()
+            green = libsumo.trafficlight.getRedYellowGreenState(tls)[link] in "Gg"
+            if green and not was_green and began is None and t > 20.0:  # a green with the stream arriving
+                began = t
+            was_green = green
+            if began is None:
+                continue
+            if not green:
+                ended = t
+                break
+            bounds.append((t, *bridge.tls_green_left_s(tls, link)))
+        assert ended is not None, "the green ended"
+        for t, earliest, latest in bounds:
+            assert earliest - 0.1 <= ended - t <= latest + 0.1, (t, earliest, latest, ended)
+        first_min = bounds[0][1]
+        assert ended - began > first_min + 10.0, "the stream held the green well beyond its shortest"
+        assert any(earliest < 4.5 and latest > 10.0 for _, earliest, latest in bounds), "getNextSwitch alone"
+    finally:
+        bridge.close()

@@ -48,7 +48,11 @@ class FakeBridge:
         return self.tls
 
     def tls_green_left_s(self, tls_id, link):
-        return self.green_left_s
+        g = self.green_left_s  # a fixed programme's end, or an actuated green's (earliest, latest)
+        return g if isinstance(g, tuple) else (g, g)
+
+    def tls_max_gap_s(self, tls_id):
+        return 3.0
 
     def next_link(self, vid):
         return self.link
@@ -182,6 +186,29 @@ def test_the_lead_standing_at_a_green_goes_when_the_ego_queued_behind_it_makes_t
         lead._stop_at_light, lead._light = True, ("J", 0, True)  # it had stopped for the ego
         lead.step(sim.world)
         assert lead.waiting == waits, green_left_s
+
+
+def test_at_an_actuated_green_the_lead_counts_on_its_extension_only_while_its_platoon_holds_it():
+    """Krems 71582001 (experiment P3): a gap-actuated green in extension ends at SUMO's next check, 0-4 s
+    ahead, every step, until its maxDur. Reckoned to that earliest end, the lead stood at the line with the
+    ego queued behind it (a car between them) through the 50-s green, its own queue holding it green. Queued
+    behind the lead, or following within the light's max-gap (3 s), the ego keeps it green to its longest;
+    farther back it may not."""
+    extension = (0.5, 26.0)  # (earliest, latest) end of the green [s]
+    sim = fake_sim(gap_m=10.0, ego_speed=0.0)
+    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 1.0, "G"), extension
+    lead = _lead(sim)
+    lead._stop_at_light, lead._light = True, ("J", 0, True)  # it had stopped for the ego
+    lead.step(sim.world)
+    assert not lead.waiting  # the ego queued behind it: go
+    for gap_m, waits in ((20.0, False), (60.0, True)):  # 2.5 s behind at 8 m/s: within max-gap; 7.5 s: not
+        sim = fake_sim(gap_m=gap_m, ego_speed=8.0)
+        sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
+        sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 40.0, "G"), extension
+        lead = _lead(sim)
+        lead.step(sim.world)
+        assert lead.waiting == waits, gap_m
 
 
 def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_suits_both():
