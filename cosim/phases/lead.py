@@ -308,8 +308,9 @@ class LeadVehicle:
             self._light = (tls_id, link, green)
             self._stop_at_light = False
         v_lead = float(w.speed_mps[w.slot_of[LEAD_ID]])
-        can_stop = dist - STOP_BEFORE_M >= v_lead * v_lead / (2.0 * STOP_DECEL_MPS2)
-        if green and can_stop and (not self._stop_at_light or v_lead < STAND_MPS):
+        standing = v_lead < STAND_MPS  # at its line: SUMO stops it a hair closer than STOP_BEFORE_M
+        can_stop = standing or dist - STOP_BEFORE_M >= v_lead * v_lead / (2.0 * STOP_DECEL_MPS2)
+        if green and can_stop and (not self._stop_at_light or standing):
             # decided again every step while the lead can still stop: an ego that slows down (a curve, a
             # car pulling out) may no longer make the green the lead would still get through; and while it
             # stands at the line: the ego may have closed up behind it

@@ -181,7 +181,8 @@ def test_the_lead_standing_at_a_green_goes_when_the_ego_queued_behind_it_makes_t
     for green_left_s, waits in ((12.0, False), (6.0, True)):
         sim = fake_sim(gap_m=10.0, ego_speed=0.0)
         sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
-        sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 1.0, "G"), green_left_s
+        # standing where SUMO stopped it for its cap: a hair short of STOP_BEFORE_M (Krems: 0.994 m)
+        sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 0.994, "G"), green_left_s
         lead = _lead(sim)
         lead._stop_at_light, lead._light = True, ("J", 0, True)  # it had stopped for the ego
         lead.step(sim.world)
@@ -197,7 +198,7 @@ def test_at_an_actuated_green_the_lead_counts_on_its_extension_only_while_its_pl
     extension = (0.5, 26.0)  # (earliest, latest) end of the green [s]
     sim = fake_sim(gap_m=10.0, ego_speed=0.0)
     sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
-    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 1.0, "G"), extension
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 0.994, "G"), extension
     lead = _lead(sim)
     lead._stop_at_light, lead._light = True, ("J", 0, True)  # it had stopped for the ego
     lead.step(sim.world)
