@@ -19,9 +19,9 @@ considerate human leader, so the participant spends the drive following it.
   ``YIELD_TOGETHER_S`` it takes a gap for itself alone and waits for the ego beyond the line.
 - At a light it does not run away through a green that will stop the ego: approaching one, it reckons
   whether the ego, at its present speed (queued right behind it: speeding up when it goes, after the
-  start-up lost time), reaches the stop line before the green ends (the programme says when), again every
-  step while it can still stop or stands at the line; if not, it stops at the line itself and both wait
-  for the next green.
+  start-up lost time), reaches the stop line before the green ends (the programme says when; an actuated
+  green at its longest while the pair holds it, see ``_light_cap``), again every step while it can still
+  stop or stands at the line; if not, it stops at the line itself and both wait for the next green.
 - A vehicle that comes between the lead and the ego (a cut-in) is logged as a ``lead_cut_in`` event. If it
   is still there ``DIVERT_AFTER_S`` later and its route would keep it on the lead's way, it turns off at the
   next junction it can (``cut_in_diverted``), as a car in front of a confederate lead would eventually do:
