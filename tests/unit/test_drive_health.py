@@ -112,3 +112,28 @@ def test_the_experiment_summary_shows_each_phases_distance_and_why_it_degraded()
     assert rows[2].endswith(f"| 163 | degraded: {short} |")
     assert rows[3].endswith("| – | no data |")
     assert degraded_phases(summary) == [f"P4 system_A: {short}", "P4 system_B: no data"]
+
+
+def test_creeping_up_a_queue_does_not_end_a_standstill():
+    """Helsinki seed 1: a 78-s wait in a queue that closed up twice at 0.6 m/s was reported as 39.7 s, so a
+    drive could stand for minutes and pass the 120-s check. Creeps shorter than CREEP_M (a car length) are
+    part of the standstill; driving on ends it."""
+    from cosim.health import CREEP_M
+
+    def drive(gap_speed_mps: float, gap_s: float):
+        sim = _health_sim(lead=False)
+        health = DriveHealth(sim.config.ego, sim.step_s)
+        t, events = 0.0, []
+        for speed, seconds in ((0.0, 50.0), (gap_speed_mps, gap_s), (0.0, 50.0)):
+            for _ in range(round(seconds / sim.step_s)):
+                t += sim.step_s
+                _step(sim, health, t, speed, "scv1")
+                events += sim.events
+        return health.report(), events
+
+    rep, events = drive(0.6, 2.0)  # 1.2 m: the queue closes up
+    assert 0.6 * 2.0 < CREEP_M and rep["longest_standstill_s"] == pytest.approx(102.0, abs=0.2)
+    assert sum(e.kind == "ego_stall" for e in events) == 1  # one stall, past STALL_S across the creep
+    rep, events = drive(5.0, 4.0)  # 20 m: it drove on
+    assert rep["longest_standstill_s"] == pytest.approx(50.0, abs=0.2)
+    assert not any(e.kind == "ego_stall" for e in events)
