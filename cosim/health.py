@@ -218,7 +218,7 @@ def _standing(speed: np.ndarray, step_s: float) -> np.ndarray:
     idx = np.flatnonzero(still)
     # a creep: the steps between two standing ones, shorter than CREEP_M
     creep = (np.diff(idx) > 1) & (travelled[idx[1:] - 1] - travelled[idx[:-1]] < CREEP_M)
-    for a, b in zip(idx[:-1][creep].tolist(), idx[1:][creep].tolist()):
+    for a, b in zip(idx[:-1][creep].tolist(), idx[1:][creep].tolist(), strict=True):
         still[a:b] = True
     return still
 
