@@ -134,6 +134,10 @@ class Percept:
     leader_id: str | None = None  # its SUMO id
     leader_gap_m: float = math.inf  # [m] bumper-to-bumper: own front bumper to the leader's rear bumper
     leader_speed_mps: float = 0.0  # [m/s]
+    # the next vehicle on the route beyond the leader (HDM multi-anticipation: a driver sees past the car in
+    # front, e.g. a car standing behind one that pulls out of the way); inf = none seen
+    next_leader_gap_m: float = math.inf  # [m] own front bumper to its rear bumper
+    next_leader_speed_mps: float = 0.0  # [m/s]
     tls_state: TlsState | None = None  # next traffic light on the route: 'r' | 'y' | 'g'; None = none ahead
     tls_dist_m: float = math.inf  # [m] to that light's stop line
     tls_id: str | None = None  # optional id: tells consecutive lights apart
@@ -175,6 +179,7 @@ class Percept:
         for name in (
             "next_speed_limit_dist_m",
             "leader_gap_m",
+            "next_leader_gap_m",
             "tls_dist_m",
             "sign_dist_m",
             "route_end_dist_m",

@@ -2,9 +2,10 @@
 
 One step, in order:
 
-1. Perceive: leader gap and speed get HDM estimation errors (Treiber, Kesting, Helbing 2006): the gap is
-   multiplied by exp(V_s * w_s) and the relative speed is off by gap * r_c * w_l, where w_s, w_l are unit
-   Ornstein-Uhlenbeck processes (the HDM's "Wiener process" errors with correlation time tau).
+1. Perceive: leader gap and speed (and those of the vehicle beyond it) get HDM estimation errors (Treiber,
+   Kesting, Helbing 2006): the gap is multiplied by exp(V_s * w_s) and the relative speed is off by
+   gap * r_c * w_l, where w_s, w_l are unit Ornstein-Uhlenbeck processes (the HDM's "Wiener process" errors
+   with correlation time tau).
 2. Delay: the noisy percept goes into a buffer; the driver acts on the one from ``reaction_time_s`` ago.
    Own speed is felt immediately. Distances in the delayed percept are advanced by dead reckoning (own
    odometer since then; the leader assumed to keep its perceived acceleration - brake lights, looming), the
@@ -158,7 +159,7 @@ class _Seen:
     """One noisy percept of the outside world, kept in the reaction-delay buffer."""
 
     __slots__ = (
-        "t", "odo", "leader", "leader_id", "gap", "vl", "al", "limit", "next_limit", "next_limit_d", "tls", "tls_d", "tls_id",
+        "t", "odo", "leader", "leader_id", "gap", "vl", "al", "gap2", "vl2", "limit", "next_limit", "next_limit_d", "tls", "tls_d", "tls_id",
         "sign", "sign_d", "sign_id", "conflict", "jgap", "movement", "route_end_d", "cross_d", "merge_d", "a_lit", "b_gap",
         "b_level",
     )  # fmt: skip
@@ -342,6 +343,11 @@ class ScriptedDriver(Driver):
                 raw = (s.vl - prev.vl) / (p.t_s - prev.t)
                 k = min((p.t_s - prev.t) / _LEADER_ACCEL_SMOOTH_S, 1.0)
                 s.al = min(max(prev.al + k * (raw - prev.al), -10.0), 5.0)
+        s.gap2, s.vl2 = math.inf, 0.0
+        if p.leader_present and math.isfinite(p.next_leader_gap_m):  # seen with the same kind of error
+            gap2 = max(p.next_leader_gap_m, 0.0)
+            s.gap2 = gap2 * math.exp(prof.gap_error_rel * self._w[0])
+            s.vl2 = max(p.next_leader_speed_mps - gap2 * prof.inv_ttc_error_ps * self._w[1], 0.0)
         s.limit, s.next_limit, s.next_limit_d = (
             p.speed_limit_mps,
             p.next_speed_limit_mps,
@@ -413,17 +419,15 @@ class ScriptedDriver(Driver):
             else:
                 vl_est, leader_moved = d.vl + d.al * age, (d.vl + 0.5 * d.al * age) * age
             gap_est = max(d.gap + leader_moved - travelled, 0.1)
-            s_star = prof.min_gap_m + max(0.0, v * time_gap + v * (v - vl_est) / (2.0 * math.sqrt(a_max * b)))
-            z = s_star / gap_est
-            if v <= v0:
-                if z >= 1.0:
-                    a_follow = a_max * (1.0 - z * z)
-                elif free > 1e-9:
-                    a_follow = free * (1.0 - z ** (2.0 * a_max / free))
-                else:
-                    a_follow = free
-            else:
-                a_follow = free + a_max * (1.0 - z * z) if z >= 1.0 else free
+            a_follow = self._follow_accel(v, v0, free, gap_est, vl_est, time_gap)
+            if math.isfinite(d.gap2):
+                # multi-anticipation (the HDM of Treiber, Kesting & Helbing 2006, Physica A 360: 71-88; here the
+                # smaller of the two IDM responses, not its weighted sum): the car beyond the leader,
+                # dead-reckoned at its seen speed. Seeing only the nearest, a driver
+                # whose leader (a car overlapping the lane from the next one) pulled away found the lead
+                # standing 2.9 m ahead one reaction time late and ran into it (Helsinki, experiment P4, 81 s)
+                gap2 = max(d.gap2 + d.vl2 * age - travelled, 0.1)
+                a_follow = min(a_follow, self._follow_accel(v, v0, free, gap2, d.vl2, time_gap))
             if a_follow < best:
                 best, mode = a_follow, "leader"
 
@@ -460,6 +464,20 @@ class ScriptedDriver(Driver):
                     "give_way",
                 )
         return best, mode, v0, gap_est, vl_est
+
+    def _follow_accel(self, v: float, v0: float, free: float, gap_m: float, v_leader: float,
+                      time_gap: float) -> float:  # fmt: skip
+        """The improved IDM's acceleration behind a leader ``gap_m`` ahead at ``v_leader`` (``free``: its
+        free-road acceleration at desired speed ``v0``)."""
+        prof = self.profile
+        a_max, b = prof.max_accel_mps2, prof.comfort_decel_mps2
+        s_star = prof.min_gap_m + max(0.0, v * time_gap + v * (v - v_leader) / (2.0 * math.sqrt(a_max * b)))
+        z = s_star / gap_m
+        if v > v0:
+            return free + a_max * (1.0 - z * z) if z >= 1.0 else free
+        if z >= 1.0:
+            return a_max * (1.0 - z * z)
+        return free * (1.0 - z ** (2.0 * a_max / free)) if free > 1e-9 else free
 
     def _traffic_light(self, d: _Seen, v: float, dist_m: float) -> str:
         """Latch a stop/go decision per light: red -> stop; yellow -> stop if comfortably possible."""

@@ -47,6 +47,7 @@ ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is cert
 ON_ROUTE_M = 3.5
 # ... except within this of a junction the route passes a second time (``_in_junction_passed_before``) [m]
 REPASS_MARGIN_M = 5.0
+NEXT_LEADERS_SEEN = 3  # vehicles on the path the percept keeps, nearest first: the leader and those beyond it
 LEAD_BESIDE_M = 5.0  # the lead's rear this close to the path's centre line is ahead of the ego, in its lane or the next [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
@@ -187,6 +188,17 @@ def pull_away_arrival(v: float, v_top: float, dist_m: float) -> tuple[float, flo
     return (v_top - v) / a + (dist_m - speeding_up_m) / v_top, v_top
 
 
+def _next_leader(on_path, kw: dict) -> dict:
+    """The nearest vehicle on the path beyond the percept's leader (``on_path``: (id, gap, speed) nearest
+    first), for the driver's multi-anticipation; {} when there is none."""
+    if not kw.get("leader_present"):
+        return {}
+    beyond = [
+        (gap, speed) for vid, gap, speed in on_path if vid != kw["leader_id"] and gap > kw["leader_gap_m"]
+    ]
+    return {"next_leader_gap_m": beyond[0][0], "next_leader_speed_mps": beyond[0][1]} if beyond else {}
+
+
 class EgoController:
     """Owns the car and the driver; plugs into the sumo / driver / ego / writeback phases.
 
@@ -275,6 +287,7 @@ class EgoController:
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
         kw = self._leader_on_path(w, slot, cx, cy, s_front)
+        on_path = kw.pop("on_path", ())
         kw.update(self._lead_one_lane_over(w, s_front, kw))
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it (write_back): the cars
         # there see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
@@ -289,6 +302,7 @@ class EgoController:
                 kw.update(self._leader_in_new_lane(w, near, self._new_lane, s_front, kw))
             if upcoming is not None:
                 kw.update(self._merge(w, near, upcoming, s_front, kw))
+        kw.update(_next_leader(on_path, kw))
         tls = self._next_tls(w, s_front)
         self._check_red_light(tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
@@ -391,10 +405,12 @@ class EgoController:
         kw = self._crossing(w, idx, heading, cx, cy, s_front, half)
         if rows.size == 0:
             return kw
-        k = int(np.argmin(s_rear))
-        slot = int(idx[rows[k]])
-        return {**kw, "leader_present": True, "leader_id": w.ids[slot], "leader_gap_m": max(0.0, float(s_rear[k] - s_front)),
-                "leader_speed_mps": float(w.speed_mps[slot])}  # fmt: skip
+        order = np.argsort(s_rear, kind="stable")[:NEXT_LEADERS_SEEN]
+        seen = [(w.ids[int(idx[rows[k]])], max(0.0, float(s_rear[k] - s_front)), float(w.speed_mps[idx[rows[k]]]))
+                for k in order.tolist()]  # fmt: skip
+        vid, gap, speed = seen[0]
+        return {**kw, "leader_present": True, "leader_id": vid, "leader_gap_m": gap, "leader_speed_mps": speed,
+                "on_path": seen}  # fmt: skip
 
     def _lead_one_lane_over(self, w: World, s_front: float, seen: dict) -> dict:
         """The lead car ahead of the ego one lane over is the participant's leader: they follow the lead,

@@ -196,3 +196,33 @@ def test_stops_at_the_route_end():
                   extras=lambda t, s, v: dict(route_end_dist_m=end_s - s))  # fmt: skip
     assert tr.v[-1] == 0.0
     assert 0.0 < end_s - tr.s_front[-1] <= 1.0
+
+
+@pytest.mark.parametrize("name", ["daily_commuter", "occasional_driver"])
+def test_a_car_pulling_out_of_the_way_does_not_hide_the_standing_car_beyond_it(name):
+    """Helsinki, experiment P4 (81 s): the lead stood at a red light ahead of the ego; a car in the next lane
+    overlapped the ego's path as it passed, 2.5 m ahead, and was the percept's only leader for 1.5 s. When it
+    had gone by, the lead was 2.9 m ahead; the driver, acting on the percept of one reaction time ago, still
+    followed the car pulling away and ran into the lead. Seeing the car beyond its leader
+    (multi-anticipation), it stops behind the lead at its minimum gap."""
+    start_front = 20.0 + 0.5 * 4.5  # the ego's front at s0 = 20 m (centre)
+    lead_rear = start_front + 12.0
+
+    def closest_to_the_lead(multi_anticipation: bool) -> float:
+        def seen(t, s_front, v):
+            lead = {"leader_present": True, "leader_id": "lead", "leader_gap_m": max(lead_rear - s_front, 0.0),
+                    "leader_speed_mps": 0.0}  # fmt: skip
+            if not 1.0 <= t < 2.5:
+                return lead
+            passing = {"leader_present": True, "leader_id": "scv16", "leader_gap_m": 2.5 + 0.5 * (t - 1.0),
+                       "leader_speed_mps": 5.5}  # fmt: skip
+            if multi_anticipation:
+                passing |= {"next_leader_gap_m": lead["leader_gap_m"], "next_leader_speed_mps": 0.0}
+            return passing
+
+        tr = simulate(scripted(name), Route.straight(), 12.0, v0_mps=5.0, s0_m=20.0, extras=seen,
+                      speed_limit_mps=14.0)  # fmt: skip
+        return lead_rear - float(np.max(tr.s_front))  # [m]
+
+    assert closest_to_the_lead(False) < 0.5  # seeing only the nearest: into the lead, or all but
+    assert closest_to_the_lead(True) == pytest.approx(scripted(name).profile.min_gap_m, abs=0.6)
