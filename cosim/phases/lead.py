@@ -50,12 +50,17 @@ CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this t
 YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
 EGO_CLOSE_M = 15.0  # ... until the ego is at most this far behind it [m]
 LIGHT_DECIDE_M = 70.0  # the lead decides whether to stop for the ego's sake this far before a light [m]
-LIGHT_MARGIN_S = 1.5  # the ego must reach the stop line this long before the green ends [s]
+LIGHT_MARGIN_S = 1.5  # an approaching ego must reach the stop line this long before the green ends [s]
 # ... at its present speed; queued behind the lead (within EGO_CLOSE_M, or behind a car between them that
 # is) it goes when the lead goes: speeding up (EGO_PULL_AWAY_MPS2), after the start-up lost time when it stands
 # (HCM 2010, ch. 31: 2 s). Reckoned at its present speed, a standing ego never made any green, and the lead
 # stood at its line through green after green (Munich seed 2: 96 s, a car between them)
 START_UP_LOST_S = 2.0
+# a queue discharging at a green goes on into the amber: HCM 2010 (ch. 31) extends the effective green by
+# this much beyond the green. A queued ego is reckoned against it, not with LIGHT_MARGIN_S: asked to make the
+# green with a margin, the lead standing at its line with the ego 1.7 m behind found a 6-s protected green
+# too short, cycle after cycle (Munich, experiment P1: 120 s, a permissive green before it too busy) [s]
+EXTENSION_OF_GREEN_S = 2.0
 STOP_DECEL_MPS2 = 2.0  # the lead's planned deceleration when it stops for the ego at a green [m/s^2]
 STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
 # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor, and a permissive
@@ -326,7 +331,11 @@ class LeadVehicle:
             # at the line, its queue holding the green, until the green's longest ran out (Krems 71582001:
             # 50 s, then a whole red; the ego 10 m behind, a car between them)
             platoon = queued or self.gap_m <= self.bridge.tls_max_gap_s(tls_id) * max(v_ego, 1.0)
-            self._stop_at_light = ego_s + LIGHT_MARGIN_S > (latest if platoon else earliest)
+            green_left = latest if platoon else earliest
+            if queued:
+                self._stop_at_light = ego_s > green_left + EXTENSION_OF_GREEN_S
+            else:
+                self._stop_at_light = ego_s + LIGHT_MARGIN_S > green_left
         if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))

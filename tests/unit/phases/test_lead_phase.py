@@ -177,8 +177,10 @@ def test_the_lead_standing_at_a_green_goes_when_the_ego_queued_behind_it_makes_t
     """Munich seed 2: the lead stood at its line for the ego, a car between them; reckoned at the ego's
     present speed (0) no green was ever long enough, and the lead stood through green after green. Queued
     behind the lead, the ego goes when it goes: start-up lost time 2 s + 15 m speeding up at 1.5 m/s^2
-    (4.5 s) + the 1.5-s margin = 8 s."""
-    for green_left_s, waits in ((12.0, False), (6.0, True)):
+    (4.5 s) = 6.5 s, within the green and the 2 s a discharging queue goes on into the amber (HCM: Munich P1,
+    a 6-s protected green, the ego 1.7 m behind: asked for a 1.5-s margin instead, the lead stood at its
+    line cycle after cycle)."""
+    for green_left_s, waits in ((12.0, False), (6.0, False), (4.0, True)):
         sim = fake_sim(gap_m=10.0, ego_speed=0.0)
         sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
         # standing where SUMO stopped it for its cap: a hair short of STOP_BEFORE_M (Krems: 0.994 m)
