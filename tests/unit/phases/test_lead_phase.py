@@ -181,14 +181,20 @@ def test_the_lead_standing_at_a_green_goes_when_the_ego_queued_behind_it_makes_t
     a 6-s protected green, the ego 1.7 m behind: asked for a 1.5-s margin instead, the lead stood at its
     line cycle after cycle)."""
     for green_left_s, waits in ((12.0, False), (6.0, False), (4.0, True)):
-        sim = fake_sim(gap_m=10.0, ego_speed=0.0)
-        sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
-        # standing where SUMO stopped it for its cap: a hair short of STOP_BEFORE_M (Krems: 0.994 m)
-        sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 0.994, "G"), green_left_s
-        lead = _lead(sim)
-        lead._stop_at_light, lead._light = True, ("J", 0, True)  # it had stopped for the ego
-        lead.step(sim.world)
-        assert lead.waiting == waits, green_left_s
+        assert _standing_at_a_green_with_the_ego_queued(green_left_s).waiting == waits, green_left_s
+
+
+def _standing_at_a_green_with_the_ego_queued(green_left_s) -> LeadVehicle:
+    """The lead after one step standing at its line, where it had stopped for the ego, at a green with
+    ``green_left_s`` to go (or (earliest, latest)), the ego queued 10 m behind it."""
+    sim = fake_sim(gap_m=10.0, ego_speed=0.0)
+    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
+    # standing where SUMO stopped it for its cap: a hair short of STOP_BEFORE_M (Krems: 0.994 m)
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 0.994, "G"), green_left_s
+    lead = _lead(sim)
+    lead._stop_at_light, lead._light = True, ("J", 0, True)
+    lead.step(sim.world)
+    return lead
 
 
 def test_at_an_actuated_green_the_lead_counts_on_its_extension_only_while_its_platoon_holds_it():
@@ -198,13 +204,7 @@ def test_at_an_actuated_green_the_lead_counts_on_its_extension_only_while_its_pl
     behind the lead, or following within the light's max-gap (3 s), the ego keeps it green to its longest;
     farther back it may not."""
     extension = (0.5, 26.0)  # (earliest, latest) end of the green [s]
-    sim = fake_sim(gap_m=10.0, ego_speed=0.0)
-    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
-    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 0.994, "G"), extension
-    lead = _lead(sim)
-    lead._stop_at_light, lead._light = True, ("J", 0, True)  # it had stopped for the ego
-    lead.step(sim.world)
-    assert not lead.waiting  # the ego queued behind it: go
+    assert not _standing_at_a_green_with_the_ego_queued(extension).waiting  # the ego queued behind it: go
     for gap_m, waits in ((20.0, False), (60.0, True)):  # 2.5 s behind at 8 m/s: within max-gap; 7.5 s: not
         sim = fake_sim(gap_m=gap_m, ego_speed=8.0)
         sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
