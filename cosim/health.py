@@ -6,8 +6,9 @@ experiment phase):
 
 - ``ego_present_at_s``: when the ego first was in the simulation;
 - ``ego_distance_m``, ``longest_standstill_s`` (and the longest outside red lights; creeping up a queue by
-  less than ``CREEP_M`` does not end a standstill), ``stalls``: standstills longer than ``STALL_S`` (a light cycle) that were not at a red light, each also logged as an
-  ``ego_stall`` event naming what the ego waited for;
+  less than ``CREEP_M`` does not end a standstill), ``stalls``: standstills longer than ``STALL_S`` (a light
+  cycle) that were not at a red light, each also logged as an ``ego_stall`` event naming what the ego
+  waited for;
 - ``following_share``: share of the ego's states with a vehicle ahead on its path within ``FOLLOW_M``
   (moving or queued behind it); ``lead_leader_share``: share in which that vehicle is the lead car;
   ``cut_ins``: other vehicles that came between the lead and the ego;

@@ -423,9 +423,9 @@ class ScriptedDriver(Driver):
             if math.isfinite(d.gap2):
                 # multi-anticipation (the HDM of Treiber, Kesting & Helbing 2006, Physica A 360: 71-88; here the
                 # smaller of the two IDM responses, not its weighted sum): the car beyond the leader,
-                # dead-reckoned at its seen speed. Seeing only the nearest, a driver
-                # whose leader (a car overlapping the lane from the next one) pulled away found the lead
-                # standing 2.9 m ahead one reaction time late and ran into it (Helsinki, experiment P4, 81 s)
+                # dead-reckoned at its seen speed. Seeing only the nearest, a driver whose leader (a car
+                # overlapping the lane from the next one) pulled away found the lead standing 2.9 m ahead one
+                # reaction time late and ran into it (Helsinki, experiment P4, 81 s)
                 gap2 = max(d.gap2 + d.vl2 * age - travelled, 0.1)
                 a_follow = min(a_follow, self._follow_accel(v, v0, free, gap2, d.vl2, time_gap))
             if a_follow < best:
