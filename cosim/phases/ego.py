@@ -286,8 +286,7 @@ class EgoController:
                 self._route_changed(changed)
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
-        kw = self._leader_on_path(w, slot, cx, cy, s_front)
-        on_path = kw.pop("on_path", ())
+        kw, on_path = self._leader_on_path(w, slot, cx, cy, s_front)
         kw.update(self._lead_one_lane_over(w, s_front, kw))
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it (write_back): the cars
         # there see it and stay behind (mapped to the nearest lane, the twin would jump over only half way)
@@ -386,14 +385,15 @@ class EgoController:
         if last and last[2] < 5.0 and _TLS.get(last[3]) == "r" and (not tls or tls[:2] != last[:2]):
             self.emit(SumoEvent("red_light_violation", EGO_ID, f"{last[0]} link {last[1]}", last[2]))
 
-    def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> dict:
+    def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> tuple[dict, list]:
         """The nearest vehicle whose rear is on the ego's own path ahead: what a driver sees in front of
-        them, whichever SUMO lane it is on (a car the ego is about to change lanes behind, one in a bend)."""
+        them, whichever SUMO lane it is on (a car the ego is about to change lanes behind, one in a bend);
+        with the percept's fields, (id, gap, speed) of the nearest NEXT_LEADERS_SEEN such vehicles."""
         live, _ = w.live()
         near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < PREVIEW_AHEAD_M + 10.0]
         idx = near[near != ego_slot]
         if idx.size == 0:
-            return {}
+            return {}, []
         heading = np.radians(w.heading_deg[idx])  # World.heading_unit, for these vehicles only
         length = w.length_m[idx]
         rear_x = w.x_m[idx] - np.sin(heading) * length
@@ -404,13 +404,13 @@ class EgoController:
         )
         kw = self._crossing(w, idx, heading, cx, cy, s_front, half)
         if rows.size == 0:
-            return kw
+            return kw, []
         order = np.argsort(s_rear, kind="stable")[:NEXT_LEADERS_SEEN]
         seen = [(w.ids[int(idx[rows[k]])], max(0.0, float(s_rear[k] - s_front)), float(w.speed_mps[idx[rows[k]]]))
                 for k in order.tolist()]  # fmt: skip
         vid, gap, speed = seen[0]
-        return {**kw, "leader_present": True, "leader_id": vid, "leader_gap_m": gap, "leader_speed_mps": speed,
-                "on_path": seen}  # fmt: skip
+        return {**kw, "leader_present": True, "leader_id": vid, "leader_gap_m": gap,
+                "leader_speed_mps": speed}, seen  # fmt: skip
 
     def _lead_one_lane_over(self, w: World, s_front: float, seen: dict) -> dict:
         """The lead car ahead of the ego one lane over is the participant's leader: they follow the lead,

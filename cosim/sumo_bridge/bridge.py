@@ -137,6 +137,7 @@ class SumoBridge:
         self._colliding: set[tuple[str, str]] = set()
         self._removed: list[str] = []  # removed by cosim this step
         self._tls_logics: dict[tuple[str, str], list[tuple[float, float, str]] | None] = {}
+        self._tls_max_gaps: dict[str, float] = {}
         self._incoming: dict[str, list[tuple[str, str, float]]] | None = None  # lane -> lanes into it
         self._lc_mode_before: dict[str, int] = {}  # vehicle -> its lane-change mode while keep_lane forces
 
@@ -569,8 +570,10 @@ class SumoBridge:
         """The longest time gap between vehicles at a detector that still extends the light's actuated green
         [s] (its ``max-gap`` parameter; SUMO's default 3.0 s, Simulation/Traffic_Lights, "Actuated Traffic
         Lights")."""
-        value = self._sumo.trafficlight.getParameter(tls_id, "max-gap")
-        return float(value) if value else ACTUATED_MAX_GAP_S
+        if tls_id not in self._tls_max_gaps:  # asked every step near a light; a programme's parameter
+            value = self._sumo.trafficlight.getParameter(tls_id, "max-gap")
+            self._tls_max_gaps[tls_id] = float(value) if value else ACTUATED_MAX_GAP_S
+        return self._tls_max_gaps[tls_id]
 
     def _tls_logic(self, tls_id: str, program: str) -> list[tuple[float, float, str]] | None:
         """(shortest [s], longest [s], state) of each phase of the programme: minDur and maxDur for an
