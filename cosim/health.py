@@ -105,9 +105,9 @@ class DriveHealth:
 
     def _watch_stall(self, t: float, speed: float, red: bool, percept, driver_mode) -> SumoEvent | None:
         """An ``ego_stall`` event, once, when a standstill outside red lights (creeps of less than CREEP_M
-        included) passes STALL_S."""
+        each included, the rule of ``_standing``) passes STALL_S."""
         if self._still_since is not None:
-            self._crept_m += speed * self.step_s
+            self._crept_m = self._crept_m + speed * self.step_s if speed >= STOPPED_MPS else 0.0
         if red or (speed >= STOPPED_MPS and (self._still_since is None or self._crept_m > CREEP_M)):
             self._still_since, self._stall_logged = None, False
             return None

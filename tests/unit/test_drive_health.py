@@ -120,11 +120,12 @@ def test_creeping_up_a_queue_does_not_end_a_standstill():
     part of the standstill; driving on ends it."""
     from cosim.health import CREEP_M
 
-    def drive(gap_speed_mps: float, gap_s: float):
+    def drive(gap_speed_mps: float, gap_s: float, creeps: int = 1):
         sim = _health_sim(lead=False)
         health = DriveHealth(sim.config.ego, sim.step_s)
         t, events = 0.0, []
-        for speed, seconds in ((0.0, 50.0), (gap_speed_mps, gap_s), (0.0, 50.0)):
+        legs = [(0.0, 50.0)] + [(gap_speed_mps, gap_s), (0.0, 50.0 / creeps)] * creeps
+        for speed, seconds in legs:
             for _ in range(round(seconds / sim.step_s)):
                 t += sim.step_s
                 _step(sim, health, t, speed, "scv1")
@@ -134,6 +135,11 @@ def test_creeping_up_a_queue_does_not_end_a_standstill():
     rep, events = drive(0.6, 2.0)  # 1.2 m: the queue closes up
     assert 0.6 * 2.0 < CREEP_M and rep["longest_standstill_s"] == pytest.approx(102.0, abs=0.2)
     assert sum(e.kind == "ego_stall" for e in events) == 1  # one stall, past STALL_S across the creep
+    # the report and the ego_stall event judge each creep alone: four creeps of 2 m (8 m in all) are one
+    # standstill of 108 s for both
+    rep, events = drive(1.0, 2.0, creeps=4)
+    assert 2.0 < CREEP_M < 8.0 and rep["longest_standstill_s"] == pytest.approx(108.0, abs=0.2)
+    assert sum(e.kind == "ego_stall" for e in events) == 1
     rep, events = drive(5.0, 4.0)  # 20 m: it drove on
     assert rep["longest_standstill_s"] == pytest.approx(50.0, abs=0.2)
     assert not any(e.kind == "ego_stall" for e in events)
