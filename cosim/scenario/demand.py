@@ -1,5 +1,9 @@
 """Traffic demand (paper V.A): SCVs start only on primary, secondary, tertiary, unclassified, motorway and
-residential edges and drive to a random reachable destination along an A* route.
+residential edges and drive along an A* route to a random destination on a road of the same kinds, drawn
+like the origins (by lane length): a town's traffic goes from street to street. Service roads (parking
+aisles, yards, driveways: 622 of Krems' 1520 edges) are no destination; drawn uniformly per edge over all
+edges they took 44 % of Krems' trips into their tangles of junctions 0.2 m apart, where SUMO's cars
+collided and jammed (issue 15 item 5). Routes may still pass along them where A* finds that shorter.
 
 Density presets are averages of vehicles present per lane-km (``DENSITY_PRESETS``). The run starts with
 that many vehicles already spread over the area (random positions on their origin edges) and keeps it by
@@ -107,6 +111,73 @@ def is_spawn_edge(edge) -> bool:
     return any(etype == f"highway.{h}" or etype.startswith(f"highway.{h}|") for h in SPAWN_HIGHWAYS)
 
 
+def trip_ends(comp: list, min_length_m: float = 5.0) -> tuple[list[str], np.ndarray]:
+    """Where SCV trips start and end: the spawn edges of ``comp`` longer than ``min_length_m`` and their
+    draw probabilities (lane length, so a long street gets more trips than a stub of a cluster)."""
+    ends = [e for e in comp if is_spawn_edge(e) and e.getLength() > min_length_m]
+    if not ends:
+        raise CosimError(
+            "the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on"
+        )
+    weight = np.array([e.getLength() * _lanes_for_cars(e) for e in ends])
+    return [e.getID() for e in ends], weight / weight.sum()
+
+
+# a dual carriageway's two directions are separate roads whose ends lie this far apart at most [m] (the
+# median and the junction clusters of Munich's divided primaries: 10-30 m)
+CARRIAGEWAY_GAP_M = 35.0
+
+
+def opposite_edges(edges) -> dict[str, str]:
+    """Each edge's other direction on the same street, where it has one: the edge between the same two
+    junctions the other way round, or on a dual carriageway the road of the other direction that starts
+    and ends within CARRIAGEWAY_GAP_M of this one's end and start, heading the other way (the nearest)."""
+    edges = list(edges)
+    by_nodes = {(e.getFromNode().getID(), e.getToNode().getID()): e.getID() for e in edges}
+    out = {eid: by_nodes[(b, a)] for (a, b), eid in by_nodes.items() if (b, a) in by_nodes}
+    ids = [e.getID() for e in edges]
+    start = np.array([e.getFromNode().getCoord()[:2] for e in edges], dtype=float)
+    end = np.array([e.getToNode().getCoord()[:2] for e in edges], dtype=float)
+    chord = end - start
+    for i in np.flatnonzero([eid not in out for eid in ids]).tolist():
+        # f's start near e's end, f's end near e's start, heading within 30 deg of the opposite
+        gap = np.linalg.norm(start - end[i], axis=1) + np.linalg.norm(end - start[i], axis=1)
+        norm = np.linalg.norm(chord, axis=1) * max(float(np.linalg.norm(chord[i])), 1e-9)
+        opposed = chord @ chord[i] < -np.cos(np.radians(30.0)) * norm
+        near = np.flatnonzero((gap < 2 * CARRIAGEWAY_GAP_M) & opposed & (norm > 0))
+        near = [
+            j
+            for j in near.tolist()
+            if max(np.linalg.norm(start[j] - end[i]), np.linalg.norm(end[j] - start[i])) < CARRIAGEWAY_GAP_M
+        ]
+        if near:
+            out[ids[i]] = ids[min(near, key=lambda j: (gap[j], ids[j]))]
+    return out
+
+
+def route_trips(pairs: list[tuple[str, str]], ends: list[str], opposite: dict[str, str], cost, table: RouteTable,
+                net_file: Path, workdir: Path, turn_origin: bool = True
+                ) -> dict[tuple[str, str], tuple[str, ...] | None]:  # fmt: skip
+    """A* routes for trips between two streets: each leaves its origin street and reaches its destination
+    street in whichever direction (of the ones in ``ends``) gives the route of least ``cost``, as a driver
+    heads off towards the destination. Drawn in one direction, 47 % of Krems' trips drove a loop to turn
+    round (U-turns are not allowed at junctions; loops of up to 5 km, and round the parking lot of
+    860978174, where its tangle of junctions 0.2 m apart made SUMO's cars collide)."""
+    ok = set(ends)
+
+    def both(edge: str, turn: bool = True) -> list[str]:
+        return [edge] + ([opposite[edge]] if turn and opposite.get(edge) in ok else [])
+
+    options = {
+        p: [(o, d) for o in both(p[0], turn_origin) for d in both(p[1]) if o != d]
+        for p in dict.fromkeys(pairs)
+    }
+    routed = table.routes([c for cs in options.values() for c in cs], net_file, workdir)
+    return {
+        p: min((routed[c] for c in cs if routed.get(c)), key=cost, default=None) for p, cs in options.items()
+    }
+
+
 # a turn sharper than this is a hairpin: a U-turn, or one through a small junction whose internal lane bends
 # tighter than the car can steer (141 deg at a Krems junction: the driver left the road with full lock)
 HAIRPIN_DEG = 130.0
@@ -136,13 +207,15 @@ class RouteChainer:
         self.head_in = {e.getID(): _heading(e.getShape()[-2], e.getShape()[-1]) for e in comp}
         self.head_out = {e.getID(): _heading(e.getShape()[0], e.getShape()[1]) for e in comp}
         ends = set(self.length)
-        # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route
+        # destinations with a way on that is not a U-turn: a leg into a dead end would strand the route;
+        # on the town's streets as the SCVs' trips (``trip_ends``), not into a parking aisle
         through = [
-            e.getID()
+            e
             for e in comp
             if any(not self.hairpin(e.getID(), o.getID()) for o in e.getOutgoing() if o.getID() in ends)
         ]
-        self.dest_ids = through or sorted(ends)
+        streets = [e.getID() for e in through if is_spawn_edge(e)]
+        self.dest_ids = streets or [e.getID() for e in through] or sorted(ends)
 
     def turn(self, a: str, b: str) -> float:
         """Signed turn from edge ``a`` onto edge ``b`` [deg], left positive."""
@@ -172,16 +245,26 @@ class RouteChainer:
     def extend(self, route: list[str], rng: np.random.Generator, legs_for) -> float:
         """Append one leg to ``route`` (in place) from a batch of random destinations; ``legs_for(pairs)``
         returns {(origin, destination): edges} for the ones it could route. Returns the added length [m]
-        (0: no destination of the batch gave a leg without a hairpin)."""
+        (0: no destination of the batch gave a leg without a hairpin). A leg that passes a junction twice
+        (a loop round a block or through a parking lot to turn round) is taken only when the batch has no
+        other."""
         dests = [self.dest_ids[int(i)] for i in rng.integers(0, len(self.dest_ids), self.BATCH)]
         legs = legs_for([(route[-1], d) for d in dests])
-        for d in dests:
-            leg = legs.get((route[-1], d))
-            if not leg or len(leg) < 3 or self.turns_back(leg):
-                continue
-            route.extend(leg[1:])
-            return self.route_length(leg[1:])
-        return 0.0
+        good = [
+            leg
+            for d in dests
+            if (leg := legs.get((route[-1], d))) and len(leg) >= 3 and not self.turns_back(leg)
+        ]
+        if not good:
+            return 0.0
+        leg = next((leg for leg in good if not self.loops(leg)), good[0])
+        route.extend(leg[1:])
+        return self.route_length(leg[1:])
+
+    def loops(self, leg: list[str]) -> bool:
+        """Whether ``leg`` passes one junction twice."""
+        nodes = [self.to_node[e] for e in leg]
+        return len(set(nodes)) < len(nodes)
 
 
 STUCK_BATCHES = 3  # the ego's route starts again elsewhere after this many batches in a row gave no leg
@@ -255,20 +338,21 @@ POOL_MIN_EDGE_M = 20.0  # room to insert on an origin edge
 def build_route_pool(comp: list, table: RouteTable, net_file: Path, workdir: Path) -> list[tuple[str, ...]]:
     """A* routes from every spawn edge to a few destinations drawn from the map alone (not the seed), so
     every seed and every run of the map reuses the same routes from the table."""
-    origins = [e.getID() for e in comp if is_spawn_edge(e) and e.getLength() > POOL_MIN_EDGE_M]
-    if not origins:
-        raise CosimError(
-            "the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on"
-        )
-    dest_ids = [e.getID() for e in comp]
+    origins, _ = trip_ends(comp, POOL_MIN_EDGE_M)
+    dest_ids, w_dest = trip_ends(comp)
     # seeded by the network's edges (not a cache key, which depends on where cosim is installed)
-    rng = np.random.default_rng(zlib.crc32(" ".join(dest_ids).encode()))
+    rng = np.random.default_rng(zlib.crc32(" ".join(e.getID() for e in comp).encode()))
     pairs = [
-        (o, dest_ids[int(j)]) for o in origins for j in rng.integers(0, len(dest_ids), POOL_ROUTES_PER_ORIGIN)
+        (o, dest_ids[int(j)])
+        for o in origins
+        for j in rng.choice(len(dest_ids), POOL_ROUTES_PER_ORIGIN, p=w_dest)
     ]
     pairs = [p for p in dict.fromkeys(pairs) if p[0] != p[1]]
-    routes = table.routes(pairs, net_file, workdir)
-    pool = [routes[p] for p in pairs if routes.get(p)]
+    # each origin as drawn (traffic spawns on any of them), the destination street in its better direction
+    length = {e.getID(): e.getLength() / max(e.getSpeed(), 1.0) for e in comp}
+    routes = route_trips(pairs, dest_ids, opposite_edges(comp), lambda r: sum(length[e] for e in r), table,
+                         net_file, workdir, turn_origin=False)  # fmt: skip
+    pool = list(dict.fromkeys(routes[p] for p in pairs if routes.get(p)))
     if not pool:
         raise CosimError("no origin/destination pair could be routed on this network")
     return pool
@@ -283,17 +367,10 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
         return _write_pool_demand(net, comp, ego_route, params, behaviour, rng, table, net_file, out, workdir)
     if params.area == "ego_route":
         comp = corridor_edges(comp, ego_route, params.corridor_m)
-    origins = [e for e in comp if is_spawn_edge(e) and e.getLength() > 5.0]
-    if not origins:
-        raise CosimError(
-            "the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on"
-        )
+    orig_ids, w_orig = trip_ends(comp)
+    dest_ids = orig_ids
     lane_km = sum(e.getLength() * _lanes_for_cars(e) for e in comp) / 1000.0
     n_target = max(1, round(params.per_lane_km * lane_km))
-    w_orig = np.array([e.getLength() * _lanes_for_cars(e) for e in origins])
-    w_orig /= w_orig.sum()
-    dest_ids = [e.getID() for e in comp]
-    orig_ids = [e.getID() for e in origins]
     speed = {e.getID(): e.getSpeed() for e in full}  # routes may leave the corridor
     length = {e.getID(): e.getLength() for e in full}
 
@@ -301,7 +378,7 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
         pairs: list[tuple[str, str]] = []
         for _ in range(20):  # redraw the few pairs whose destination is their origin
             o = rng.choice(len(orig_ids), size=n - len(pairs), p=w_orig)
-            d = rng.integers(0, len(dest_ids), size=n - len(pairs))
+            d = rng.choice(len(dest_ids), size=n - len(pairs), p=w_orig)
             pairs += [
                 (orig_ids[i], dest_ids[j]) for i, j in zip(o, d, strict=True) if orig_ids[i] != dest_ids[j]
             ]
@@ -312,8 +389,9 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     def trip_time(edges) -> float:
         return sum(length[e] / (MEAN_SPEED_FRACTION * speed[e]) for e in edges)
 
+    opposite = opposite_edges(full)
     initial = draw(n_target)
-    routes = table.routes(initial, net_file, workdir)
+    routes = route_trips(initial, orig_ids, opposite, trip_time, table, net_file, workdir)
     initial = [p for p in initial if routes.get(p)]
     if not initial:
         raise CosimError("no origin/destination pair could be routed on this network")
@@ -323,7 +401,7 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     departs = np.sort(rng.uniform(0.0, params.horizon_s, n_flow))
     flow = draw(n_flow)
     departs = departs[: len(flow)]
-    routes.update(table.routes(flow, net_file, workdir))
+    routes.update(route_trips(flow, orig_ids, opposite, trip_time, table, net_file, workdir))
     dropped = sum(1 for p in flow if not routes.get(p))
 
     lines = _routes_head(behaviour, rng, ego_route)

@@ -46,6 +46,9 @@ class FakeEdge:
     def getSpeed(self):
         return 10.0
 
+    def getType(self):
+        return "highway.residential"
+
     def getShape(self):
         return self._shape
 
