@@ -19,7 +19,8 @@ turn on the spot, and SUMO's turnaround lane sweeps across the movements of the 
 incoming lane runs beside (SUMO's lane changer does not see that one). ``separated_shapes`` gives custom
 internal-lane shapes to movements that run side by side closer than two car widths without crossing: SUMO
 relates foes inside a junction only by a crossing point, so such a pair is never kept apart there, foes or
-not.
+not. ``approach_end_offsets`` moves a road's stop line back where another movement runs over its last metres,
+so that the two cross inside the junction.
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
+
+import numpy as np
 
 VEHICLE_WIDTH_M = 1.8  # the widest SCV body (SUMO's passenger default) [m]
 CLEARANCE_MARGIN_M = 0.3  # paths closer than width + margin conflict [m]
@@ -396,6 +399,67 @@ def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH
             if c is not None:
                 lines.append(_delete_line(c))
                 report.append((jid, c.from_lane, c.to_lane, round(d, 2)))
+    return lines, report
+
+
+APPROACH_CLEARANCE_M = (
+    VEHICLE_WIDTH_M + CLEARANCE_MARGIN_M
+)  # a movement passes a lane's end this far away [m]
+MAX_END_OFFSET_M = 10.0  # a stop line is moved back at most this far [m] ...
+MIN_LANE_LEFT_M = 10.0  # ... and leaves at least this much of its lane [m]
+
+
+def approach_end_offsets(net_file: Path) -> tuple[list[str], list[tuple[str, str, str, float]]]:
+    """``<edge endOffset>`` lines that move a road's stop line back behind where another movement of the
+    junction passes over the road's last metres.
+
+    Where OSM's nodes of one crossing lie apart (a cluster netconvert joined), a turn from another road can run
+    across the end of a road's lanes, before its stop line (Monaco cluster_1784107719_937988304: the right turn
+    from 80377815 crosses 4229220#1's lanes 0.0-0.2 m from their last 5 m). SUMO relates two movements only
+    by where their internal lanes cross; these do not cross inside the junction, so the turning car went while
+    a car came up to the stop line and hit it (every SCV collision of Monaco's drive benchmark and 4 of 6 in
+    its traffic benchmark). With the stop line moved back, the road's movements start behind the turn's path
+    and cross it inside the junction, where SUMO's right of way keeps them apart. Returns the lines and
+    (junction, lane, movement's first internal lane, offset).
+    """
+    import shapely
+
+    shapes, junctions, _ = _read(net_file)
+    root = ET.parse(net_file).getroot()
+    incoming = {j.get("id"): j.get("incLanes", "").split() for j in root.iter("junction")}
+    lane_len: dict[str, float] = {}  # an edge's lanes as they are, up to its stop line [m]
+    end_offset: dict[str, float] = {}  # where its stop line is already moved back (an earlier round) [m]
+    for edge in root.iter("edge"):
+        if edge.get("function") != "internal":
+            lanes = list(edge.iter("lane"))
+            lane_len[edge.get("id")] = min(float(lane.get("length", 0.0)) for lane in lanes)
+            end_offset[edge.get("id")] = max(float(lane.get("endOffset", 0.0)) for lane in lanes)
+    offsets: dict[str, float] = {}
+    report = []
+    for jid, conns, _foes in junctions:
+        unique = [c for c in {id(c): c for c in conns if c is not None}.values()]
+        for c in unique:
+            path = shapely.LineString([p for lane in c.chain for p in shapes[lane]])
+            start = shapely.Point(shapes[c.chain[0]][0])
+            for lane in incoming.get(jid, []):
+                edge = lane.rsplit("_", 1)[0]
+                if edge == c.from_edge or len(shapes.get(lane, [])) < 2 or edge not in lane_len:
+                    continue
+                if start.distance(shapely.Point(shapes[lane][-1])) < APPROACH_CLEARANCE_M:
+                    continue  # two approaches that end side by side (a merge): SUMO relates them as it can
+                tail = _cut(shapes[lane], MAX_END_OFFSET_M, True)
+                if path.distance(shapely.LineString(tail)) >= APPROACH_CLEARANCE_M:
+                    continue
+                # the furthest point of the lane's last metres that the movement passes too close
+                back = shapely.LineString(tail[::-1])
+                near = [d for d in np.arange(0.0, back.length + 0.01, 0.25).tolist()
+                        if path.distance(back.interpolate(d)) < APPROACH_CLEARANCE_M]  # fmt: skip
+                reach = max(near, default=0.0) + CLEARANCE_MARGIN_M
+                if end_offset[edge] + reach > MAX_END_OFFSET_M or lane_len[edge] - reach < MIN_LANE_LEFT_M:
+                    continue
+                offsets[edge] = max(offsets.get(edge, 0.0), end_offset[edge] + reach)
+                report.append((jid, lane, c.chain[0], round(reach, 2)))
+    lines = [f'    <edge id={quoteattr(e)} endOffset="{d:.2f}"/>' for e, d in sorted(offsets.items())]
     return lines, report
 
 

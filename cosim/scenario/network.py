@@ -23,6 +23,7 @@ from xml.sax.saxutils import quoteattr
 from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.scenario.conflicts import (
+    approach_end_offsets,
     crossing_merge_deletions,
     fan_out_deletions,
     geometric_prohibitions,
@@ -453,7 +454,9 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
     return files, junction_kind, signed_approaches, sorted(tls_approaches)
 
 
-FIX_ROUNDS = 3  # netconvert passes that apply junction fixes; each one's output is checked again
+# netconvert passes that apply junction fixes; each one's output is checked again (a stop line moved back
+# changes the junction's internal stops: Krems 1176938011 needed a fourth)
+FIX_ROUNDS = 4
 
 
 _CONN_KEY = ("from", "to", "fromLane", "toLane")
@@ -481,8 +484,9 @@ def _merge_connection_lines(text: str) -> str:
     )
 
 
-def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, int]:
-    """Append the geometric fixes (see ``cosim.scenario.conflicts``) for ``net_file`` to a connection file."""
+def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Path) -> dict[str, int]:
+    """Append the geometric fixes (see ``cosim.scenario.conflicts``) for ``net_file`` to a connection file;
+    the stop lines moved back go to a new edge file (``edg_file``, written only when there are some)."""
     deletions = turnaround_deletions(net)
     deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
     fan_outs = fan_out_deletions(net)
@@ -494,6 +498,9 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
     stops, moved = internal_stop_fixes(net_file)
     shapes, separated = separated_shapes(net_file)
     bars, barred = sibling_change_bars(net_file)
+    ends, crossed_ends = approach_end_offsets(net_file)
+    if ends:
+        edg_file.write_text("<edges>\n" + "\n".join(ends) + "\n</edges>\n")
     body = con_file.read_text().replace("</connections>\n", "") if con_file.exists() else "<connections>\n"
     body = _merge_connection_lines(body + "\n".join(stops + shapes + bars))
     con_file.write_text(body + "\n" + "\n".join(deletions + fan_outs + prohibitions) + "\n</connections>\n")
@@ -510,12 +517,17 @@ def junction_fixes(net, net_file: Path, con_file: Path, log: Path) -> dict[str, 
             + "".join(
                 f"{j} {lane}: {k} barred (into a lane a sibling runs beside)\n" for j, lane, k in barred
             )
+            + "".join(
+                f"{j} {lane}: stop line {d} m back, {via} passes its end\n"
+                for j, lane, via, d in crossed_ends
+            )
         )
     return {"turnarounds_removed": len(deletions) - len(merges) - len(overlaps),
             "lane_fan_outs_removed": len(fan_outs), "crossing_merge_lanes_removed": len(merges),
             "overlapping_lanes_removed": len(overlaps),
             "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved),
-            "internal_lanes_reshaped": len(shapes), "sibling_lane_changes_barred": len(bars)}  # fmt: skip
+            "internal_lanes_reshaped": len(shapes), "sibling_lane_changes_barred": len(bars),
+            "stop_lines_moved_back": len(ends)}  # fmt: skip
 
 
 def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
@@ -537,11 +549,13 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
     fix_log = workdir / "junction_fixes.txt"
     fix_log.unlink(missing_ok=True)
-    fixes = junction_fixes(net1, pass1, files["con"], fix_log)
+    ends = workdir / "ends.edg.xml"
+    fixes = junction_fixes(net1, pass1, files["con"], ends, fix_log)
+    edge_files = ",".join(str(f) for f in (files["edg"], ends) if f.exists())  # later files modify earlier
     final = workdir / "network.net.xml"
     run2 = run_tool(
         "netconvert",
-        ["--sumo-net-file", str(pass1), "--node-files", str(files["nod"]), "--edge-files", str(files["edg"]),
+        ["--sumo-net-file", str(pass1), "--node-files", str(files["nod"]), "--edge-files", edge_files,
          "--connection-files", str(files["con"]), *COMMON_OPTIONS,
          "--offset.disable-normalization", "true",  # keep pass 1's coordinates (signs, buildings)
          "--output-file", str(final)],
@@ -550,27 +564,30 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         fh.write("\n--- pass 2 (signs) ---\n" + run2.log)
     _check("netconvert (sign pass)", run2, osm.path)
     pass1.unlink()
-    for f in files.values():
-        f.unlink()
+    for f in (*files.values(), ends):
+        f.unlink(missing_ok=True)
     # netconvert rebuilds the junctions it patched (a prohibition adds an internal stop, a deleted connection
     # reshapes its neighbours): check the result and fix again until nothing is left
     runs = [("pass1", run1), ("pass2", run2)]
     fixes["fix_rounds"] = 1
     for i in range(FIX_ROUNDS - 1):
         con = workdir / "fixes.con.xml"
-        more = junction_fixes(read_network(final), final, con, fix_log)
+        more = junction_fixes(read_network(final), final, con, ends, fix_log)
         if not any(more.values()):
             con.unlink()
             break
         fixes = {k: fixes[k] + more.get(k, 1) for k in fixes}  # fix_rounds + 1
         fixed = workdir / "fixed.net.xml"
-        run = run_tool("netconvert", ["--sumo-net-file", str(final), "--connection-files", str(con), *COMMON_OPTIONS,
-                                      "--offset.disable-normalization", "true", "--output-file", str(fixed)])  # fmt: skip
+        edge_opts = ["--edge-files", str(ends)] if ends.exists() else []
+        run = run_tool("netconvert", ["--sumo-net-file", str(final), "--connection-files", str(con), *edge_opts,
+                                      *COMMON_OPTIONS, "--offset.disable-normalization", "true",
+                                      "--output-file", str(fixed)])  # fmt: skip
         with (workdir / "netconvert.log").open("a") as fh:
             fh.write(f"\n--- junction fixes, round {i + 2} ---\n" + run.log)
         _check("netconvert (junction fixes)", run, osm.path)
         os.replace(fixed, final)
         con.unlink()
+        ends.unlink(missing_ok=True)
         runs.append((f"fixes{i + 2}", run))
     plans = split_signal_plans(read_network(final, programs=True))
     write_signal_plans(final, plans)

@@ -25,7 +25,9 @@ pytestmark = pytest.mark.own_process
 def test_scripted_driver_300s_on_the_default_map(tmp_path):
     """No collision, never off the road, no red-light violation, lane keeping within 0.3 m on average; SUMO
     keeps the ego's planned route (its lights, right of way and foes depend on it)."""
-    cfg = load_run_config(ROOT / "configs" / "default.yaml", **{"duration_s": 300, "seed": 3,
+    # seed 8: its route changes lanes 151 m in (the pose check below needs one; seed 3's has none since the
+    # demand's street-to-street trips, aa2134c)
+    cfg = load_run_config(ROOT / "configs" / "default.yaml", **{"duration_s": 300, "seed": 8,
                                                                 "scenario.demand.density": "low"})  # fmt: skip
     foreign_route_steps = []
 
