@@ -402,9 +402,8 @@ def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH
     return lines, report
 
 
-APPROACH_CLEARANCE_M = (
-    VEHICLE_WIDTH_M + CLEARANCE_MARGIN_M
-)  # a movement passes a lane's end this far away [m]
+# a movement passes another road's lane end at least this far away (two car bodies and a margin) [m]
+APPROACH_CLEARANCE_M = VEHICLE_WIDTH_M + CLEARANCE_MARGIN_M
 MAX_END_OFFSET_M = 10.0  # a stop line is moved back at most this far [m] ...
 MIN_LANE_LEFT_M = 10.0  # ... and leaves at least this much of its lane [m]
 

@@ -160,9 +160,9 @@ def route_trips(pairs: list[tuple[str, str]], ends: list[str], opposite: dict[st
                 ) -> dict[tuple[str, str], tuple[str, ...] | None]:  # fmt: skip
     """A* routes for trips between two streets: each leaves its origin street and reaches its destination
     street in whichever direction (of the ones in ``ends``) gives the route of least ``cost``, as a driver
-    heads off towards the destination. Drawn in one direction, 47 % of Krems' trips drove a loop to turn
-    round (U-turns are not allowed at junctions; loops of up to 5 km, and round the parking lot of
-    860978174, where its tangle of junctions 0.2 m apart made SUMO's cars collide)."""
+    heads off towards the destination. Drawn in one direction, 47 % of Krems' trips passed a junction twice,
+    most to turn round (U-turns are not allowed at junctions): loops of up to 5 km, and round the parking
+    lot of 860978174, where its tangle of junctions 0.2 m apart made SUMO's cars collide."""
     ok = set(ends)
 
     def both(edge: str, turn: bool = True) -> list[str]:
