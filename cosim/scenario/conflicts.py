@@ -435,6 +435,14 @@ def approach_end_offsets(net_file: Path) -> tuple[list[str], list[tuple[str, str
             end_offset[edge.get("id")] = max(float(lane.get("endOffset", 0.0)) for lane in lanes)
     offsets: dict[str, float] = {}
     report = []
+    tails: dict[str, tuple] = {}  # a lane's last MAX_END_OFFSET_M, towards its end and back from it
+
+    def tail_of(lane: str) -> tuple:
+        if lane not in tails:
+            tail = _cut(shapes[lane], MAX_END_OFFSET_M, True)
+            tails[lane] = (shapely.LineString(tail), shapely.LineString(tail[::-1]))
+        return tails[lane]
+
     for jid, conns, _foes in junctions:
         unique = [c for c in {id(c): c for c in conns if c is not None}.values()]
         for c in unique:
@@ -446,11 +454,10 @@ def approach_end_offsets(net_file: Path) -> tuple[list[str], list[tuple[str, str
                     continue
                 if start.distance(shapely.Point(shapes[lane][-1])) < APPROACH_CLEARANCE_M:
                     continue  # two approaches that end side by side (a merge): SUMO relates them as it can
-                tail = _cut(shapes[lane], MAX_END_OFFSET_M, True)
-                if path.distance(shapely.LineString(tail)) >= APPROACH_CLEARANCE_M:
+                tail, back = tail_of(lane)
+                if path.distance(tail) >= APPROACH_CLEARANCE_M:
                     continue
                 # the furthest point of the lane's last metres that the movement passes too close
-                back = shapely.LineString(tail[::-1])
                 near = [d for d in np.arange(0.0, back.length + 0.01, 0.25).tolist()
                         if path.distance(back.interpolate(d)) < APPROACH_CLEARANCE_M]  # fmt: skip
                 reach = max(near, default=0.0) + CLEARANCE_MARGIN_M

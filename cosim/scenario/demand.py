@@ -349,8 +349,8 @@ def build_route_pool(comp: list, table: RouteTable, net_file: Path, workdir: Pat
     ]
     pairs = [p for p in dict.fromkeys(pairs) if p[0] != p[1]]
     # each origin as drawn (traffic spawns on any of them), the destination street in its better direction
-    length = {e.getID(): e.getLength() / max(e.getSpeed(), 1.0) for e in comp}
-    routes = route_trips(pairs, dest_ids, opposite_edges(comp), lambda r: sum(length[e] for e in r), table,
+    free_s = {e.getID(): e.getLength() / max(e.getSpeed(), 1.0) for e in comp}  # at the limit [s]
+    routes = route_trips(pairs, dest_ids, opposite_edges(comp), lambda r: sum(free_s[e] for e in r), table,
                          net_file, workdir, turn_origin=False)  # fmt: skip
     pool = list(dict.fromkeys(routes[p] for p in pairs if routes.get(p)))
     if not pool:
