@@ -49,6 +49,7 @@ ON_ROUTE_M = 3.5
 REPASS_MARGIN_M = 5.0
 NEXT_LEADERS_SEEN = 3  # vehicles on the path the percept keeps, nearest first: the leader and those beyond it
 LEAD_BESIDE_M = 5.0  # the lead's rear this close to the path's centre line is ahead of the ego, in its lane or the next [m]
+LEAD_AT_ROADSIDE_M = 12.0  # ... and standing at the roadside, beside up to three lanes [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 )
@@ -242,6 +243,8 @@ class EgoController:
         # the car letting the ego in: (its id, since [s], route index of the lane change's edge)
         self._let_in: tuple[str, float, int] | None = None
         self.courtesy = CourtesyYield(bridge=bridge, step_s=step_s, emit=emit)  # shared with the lead
+        # set by the lead's phase while the lead stands at the roadside to let cars pass (``LeadVehicle``)
+        self.lead_at_roadside = False
         self._first_at_line: tuple[str, float] | None = None  # (junction, since [s]) the ego waits first
 
     def _start(self, w, slot: int) -> None:
@@ -416,7 +419,9 @@ class EgoController:
         """The lead car ahead of the ego one lane over is the participant's leader: they follow the lead,
         not their lane, so they keep behind it and leave it room to move over (Helsinki seed 1: the lead,
         blocked from changing into the ego's lane, was passed by the ego closing up in that lane; it was
-        the ego's leader 3 % of the run)."""
+        the ego's leader 3 % of the run). At the roadside, letting cars pass, SUMO shows it beside the road's
+        rightmost lane (6.4 m off a two-lane road's left lane): the participant stops behind it, whichever
+        lane they are in, and lets it back in."""
         slot = w.slot_of.get(LEAD_ID)
         if slot is None:
             return {}
@@ -425,8 +430,9 @@ class EgoController:
         rear_x = np.array([w.x_m[slot] - math.sin(heading) * length])
         rear_y = np.array([w.y_m[slot] - math.cos(heading) * length])
         rows, s_rear = self.path.vehicles_on_path(
-            rear_x, rear_y, s_front, s_front + PREVIEW_AHEAD_M, LEAD_BESIDE_M
-        )
+            rear_x, rear_y, s_front, s_front + PREVIEW_AHEAD_M,
+            LEAD_AT_ROADSIDE_M if self.lead_at_roadside else LEAD_BESIDE_M,
+        )  # fmt: skip
         if rows.size == 0:
             return {}
         gap = float(s_rear[0]) - s_front

@@ -29,6 +29,11 @@ considerate human leader, so the participant spends the drive following it.
   SCV that shared the lead's route). Meanwhile the lead keeps that car within ``wait_beyond_m`` and the
   ego within ``BETWEEN_ALLOWANCE`` times that: waiting for the ego at ``wait_beyond_m`` would make it
   crawl and hold the car (and the ego) back, keeping only the car close would lose the ego.
+- Cars still between them after ``LET_PAST_AFTER_S`` are let past: the lead pulls over at the roadside
+  (``lead_let_past``; SUMO takes it off the lane, the cars behind drive by), waits there while the ego
+  stands far back, and gets back in ahead of the ego once no car is left between them (``lead_rejoined``).
+  Standing there it is the nearest car on the ego's way, so the participant stops behind it rather than
+  pass it.
 
 Its speed is only ever capped (SUMO's car following, right of way and lights still hold it back).
 """
@@ -39,11 +44,13 @@ import math
 from collections.abc import Callable
 from typing import Protocol
 
+import numpy as np
+
 from cosim.driver import Percept
 from cosim.driver.gap_acceptance import critical_gap_s, follow_up_s, movement_of
 from cosim.driver.route import RoutePath
 from cosim.phases.courtesy import COURTESY_AFTER_S, CourtesyYield
-from cosim.phases.ego import FoesBridge, priority_gap_s, pull_away_arrival
+from cosim.phases.ego import PATH_HALF_WIDTH_M, FoesBridge, priority_gap_s, pull_away_arrival
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this time [s]
@@ -95,6 +102,17 @@ STAND_MPS = 0.5  # the lead stands below this speed [m/s]
 # there is the ego or drives slower than LANE_FORCE_FOLLOWER_MPS (a queue) [s]
 LANE_FORCE_AFTER_S = 5.0
 LANE_FORCE_FOLLOWER_MPS = 2.0
+# a car between the lead and the ego this long: the lead pulls over at the roadside, lets the cars between
+# pass and drives on ahead of the ego, as a confederate lead does. Sent off at the next junction
+# (``_divert_cut_in``), a car stayed between them up to the junction its route allowed, 20 s on Monaco
+# 166009792#2; and a red that stopped only the ego let a stream of cars from the cross street in between
+# them (Krems 71582001: 75 s, lead as leader 0.25) [s]
+LET_PAST_AFTER_S = 6.0
+# ... while the ego stands (a red that stopped only the ego: the cars turning in ahead of it keep coming, and
+# the farther the lead has moved on with them, the longer each takes to pass it) [s]
+LET_PAST_STANDING_AFTER_S = 2.0
+PULL_OVER_SPARE_M = 5.0  # the lead stands at the roadside this far beyond its braking distance [m]
+PULL_OVER_CLEAR_M = 15.0  # ... and at least this far short of the lane's end: not at a junction's line [m]
 
 
 def _closing_cap(v_behind: float, gap_m: float, limit_m: float) -> float:
@@ -129,6 +147,12 @@ class LeadBridge(FoesBridge, Protocol):
 
     def follower_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None: ...
 
+    def pull_over(self, vid: str, ahead_m: float, clear_of_end_m: float) -> str | None: ...
+
+    def parked(self, vid: str) -> bool: ...
+
+    def rejoin(self, vid: str) -> None: ...
+
     def leader_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None: ...
 
 
@@ -141,6 +165,7 @@ class EgoOnPath(Protocol):
     path: RoutePath
     percept: Percept | None
     courtesy: CourtesyYield
+    lead_at_roadside: bool  # the lead sets it while it stands at the roadside
 
 
 class LeadVehicle:
@@ -171,6 +196,9 @@ class LeadVehicle:
         self._stuck_since: float | None = None  # the lead stands in another lane than its way's, since when
         self._forcing = False  # ... and noses into that lane
         self._lane: int | None = None  # the lane of its edge the lead's way takes (None: off the ego's route)
+        self._pulled_over: str | None = None  # the lane beside which the lead stands to let cars pass
+        self._rejoining = False  # ... and, told to rejoin, it has not driven off yet (maybe not on a lane)
+        self.let_past = 0  # times the lead pulled over for cars between it and the ego
 
     def step(self, w: World) -> None:
         self.lead_is_leader = False
@@ -178,9 +206,18 @@ class LeadVehicle:
         if lead is None or ego is None:
             return
         self.gap_m = self._gap(w, lead, ego)
+        if self._rejoining and float(w.speed_mps[lead]) > STAND_MPS:
+            self._rejoining = False
+        if self._pulled_over is not None or self._rejoining:
+            self._log_cut_in(w)
+            if self._pulled_over is not None:
+                self._rejoin_when_clear(w, lead, ego)
+            return
         self._keep_to_the_egos_lane(w, lead)
         self._log_cut_in(w)
         self._divert_cut_in(w)
+        if self._let_cars_past(w, lead):
+            return
         v_ego = float(w.speed_mps[ego])
         caps = []
         ego_limit_m = self.wait_beyond_m * (BETWEEN_ALLOWANCE if self._between is not None else 1.0)
@@ -429,13 +466,25 @@ class LeadVehicle:
         front_s, _ = controller.path.project(float(w.x_m[slot]), float(w.y_m[slot]), near_s=self._lead_s)
         return front_s > self._lead_s
 
-    @staticmethod
-    def _crosses(w: World, vid: str) -> bool:
-        """Whether ``vid`` heads across the ego's way (more than CROSSING_DEG off the ego's heading)."""
+    def _crosses(self, w: World, vid: str) -> bool:
+        """Whether ``vid`` heads across the ego's way: more than CROSSING_DEG off the direction of the ego's
+        path where it is (off the ego's heading without a path). Against the ego's own heading, the cars
+        beyond a turn the ego waited at all crossed its way: a red light's 75 s of cars turning in between the
+        ego and the lead beyond the junction went unseen (Krems 71582001)."""
         slot, ego = w.slot_of.get(vid), w.slot_of.get(EGO_ID)
         if slot is None or ego is None:
             return False
-        off = abs((float(w.heading_deg[slot]) - float(w.heading_deg[ego]) + 180.0) % 360.0 - 180.0)
+        heading = float(w.heading_deg[slot])
+        controller = self.ego
+        if controller is not None and controller.s_front_m is not None:
+            s, _ = controller.path.project(
+                float(w.x_m[slot]), float(w.y_m[slot]), near_s=controller.s_front_m
+            )
+            dx, dy = controller.path.direction_at(np.array([s]))
+            way = math.degrees(math.atan2(float(dx[0]), float(dy[0])))  # SUMO angle: 0 = +y, 90 = +x
+        else:
+            way = float(w.heading_deg[ego])
+        off = abs((heading - way + 180.0) % 360.0 - 180.0)
         return off > CROSSING_DEG
 
     def _divert_cut_in(self, w: World) -> None:
@@ -473,6 +522,72 @@ class LeadVehicle:
                 self.emit(
                     SumoEvent("cut_in_diverted", vid, f"turns off onto {exit_edge}, off the lead's way")
                 )
+
+    def _let_cars_past(self, w: World, lead: int) -> bool:
+        """Pull over at the roadside when cars have been between the lead and the ego for LET_PAST_AFTER_S
+        (LET_PAST_STANDING_AFTER_S while the ego stands); True when the lead now heads for its roadside stop."""
+        ego_stands = float(w.speed_mps[w.slot_of[EGO_ID]]) < STAND_MPS
+        after = LET_PAST_STANDING_AFTER_S if ego_stands else LET_PAST_AFTER_S
+        if not self._between_since or w.t_s - min(self._between_since.values()) < after:
+            return False
+        v = float(w.speed_mps[lead])
+        lane = self.bridge.pull_over(LEAD_ID, v * v / (2.0 * STOP_DECEL_MPS2) + PULL_OVER_SPARE_M,
+                                     PULL_OVER_CLEAR_M)  # fmt: skip
+        if lane is None:  # in a junction or near the end of its lane: again on the next step
+            return False
+        if self._capped:  # a lingering cap would hold it short of its stop
+            self.bridge.cap_speed(LEAD_ID, None)
+            self._capped = False
+        self._pulled_over = lane
+        if self.ego is not None:
+            self.ego.lead_at_roadside = True
+        self.let_past += 1
+        self.waiting = True
+        cars = len(self._between_since)
+        self.emit(SumoEvent("lead_let_past", LEAD_ID, f"pulls over beside {lane} for {cars} car(s) between it "
+                            f"and the ego ({self.gap_m:.0f} m)", self.gap_m))  # fmt: skip
+        return True
+
+    def _rejoin_when_clear(self, w: World, lead: int, ego: int) -> None:
+        """Back onto its lane once the lead stands at the roadside, no car is left between it and the ego,
+        and the ego comes on (it drives, or stands within ``wait_beyond_m``): standing beside the road the
+        lead is the nearest car on the ego's way, which the participant stops behind
+        (``EgoController._lead_one_lane_over``), so SUMO has room to let the lead back in ahead of it."""
+        if not self.bridge.parked(LEAD_ID):
+            return  # still on its way to the roadside stop
+        ego_comes = float(w.speed_mps[ego]) > STAND_MPS or self.gap_m <= self.wait_beyond_m
+        if not ego_comes or self._cars_between(w, lead, ego):
+            return
+        self.bridge.rejoin(LEAD_ID)
+        self._pulled_over, self._rejoining = None, True
+        self.ego.lead_at_roadside = False
+        self._between, self._ego_leader = None, LEAD_ID
+        self._between_since.clear()
+        self.emit(SumoEvent("lead_rejoined", LEAD_ID, f"ahead of the ego ({self.gap_m:.0f} m)", self.gap_m))
+
+    def _cars_between(self, w: World, lead: int, ego: int) -> bool:
+        """Whether a vehicle heading the ego's way is on its path between its front and a little beyond the
+        lead's front (room for the lead to get back in)."""
+        controller = self.ego
+        if controller is None or controller.s_front_m is None or self._lead_s is None:
+            return False
+        live, _ = w.live()
+        others = live[(live != lead) & (live != ego)]
+        if others.size == 0:
+            return False
+        ux, uy = w.heading_unit()
+        rear_x = w.x_m[others] - ux[others] * w.length_m[others]
+        rear_y = w.y_m[others] - uy[others] * w.length_m[others]
+        lead_front = self._lead_s + float(w.length_m[lead])
+        half = PATH_HALF_WIDTH_M + 0.5 * float(w.width_m[others].mean())  # the ego's leader on its path
+        rows, s = controller.path.vehicles_on_path(
+            rear_x, rear_y, controller.s_front_m - 1.0, lead_front + PULL_OVER_SPARE_M, half
+        )
+        if rows.size == 0:
+            return False
+        dx, dy = controller.path.direction_at(s)
+        along = ux[others[rows]] * dx + uy[others[rows]] * dy
+        return bool((along > math.cos(math.radians(CROSSING_DEG))).any())
 
     def close(self) -> None:
         pass

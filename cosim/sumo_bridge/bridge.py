@@ -46,6 +46,11 @@ STANDSTILL_SPEED_MPS = 0.05
 # SUMO's default max-gap of an actuated light: a green is extended while vehicles cross its detectors at most
 # this far apart (sumo.dlr.de/docs/Simulation/Traffic_Lights.html, "Actuated Traffic Lights") [s]
 ACTUATED_MAX_GAP_S = 3.0
+PARKED_FOR_GOOD_S = 86400.0  # a roadside stop lasts until ``rejoin`` ends it [s]
+# SUMO's position of a vehicle that is off the network for a moment: re-inserted after a roadside stop
+# (libsumo's INVALID_DOUBLE_VALUE, -2^30) [m]
+INVALID_POSITION = -1.0e9
+PULL_OVER_PAST_JUNCTION_M = 10.0  # a roadside stop on the next edge is at least this far into it [m]
 
 
 def _phase_span(phase) -> tuple[float, float, str]:
@@ -230,12 +235,16 @@ class SumoBridge:
         xy = np.fromiter(chain.from_iterable(map(get["position"], ids)), np.float64, 2 * n)
         x, y = xy[0::2], xy[1::2]
         fresh = world.depart_step[slots] == world.step
+        off = x <= INVALID_POSITION
+        if off.any():  # off the network for a moment (leaving a roadside stop): it keeps its last pose
+            x[off], y[off] = world.x_m[slots[off]], world.y_m[slots[off]]
         # a car whose position did not change at all stands: its speed is 0 and its lane the same (SUMO
         # moves a car by its speed times the step), so speed and lane are read for the moving ones only
         moved = fresh | (x != world.x_m[slots]) | (y != world.y_m[slots]) | world.is_ego[slots]
         world.x_m[slots] = x
         world.y_m[slots] = y
-        world.heading_deg[slots] = np.fromiter(map(get["angle"], ids), np.float64, n)
+        heading = np.fromiter(map(get["angle"], ids), np.float64, n)
+        world.heading_deg[slots] = np.where(off, world.heading_deg[slots], heading)
         if moved.all():
             mslots, mids = slots, ids
         else:
@@ -426,7 +435,8 @@ class SumoBridge:
         edge = veh.getRoute(vid)[max(veh.getRouteIndex(vid), 0)]
         if veh.getRoadID(vid) != edge:
             return edge, 0.0
-        return edge, self._sumo.lane.getLength(veh.getLaneID(vid)) - veh.getLanePosition(vid)
+        lane = veh.getLaneID(vid) or f"{edge}_0"  # at the roadside (``pull_over``) it has no lane
+        return edge, self._sumo.lane.getLength(lane) - veh.getLanePosition(vid)
 
     def queue_heads(self, edge: str, next_edge: str) -> list[tuple[int, float]]:
         """Per lane of ``edge`` with a connection onto ``next_edge``: (vehicles halting on it, the time its
@@ -453,7 +463,9 @@ class SumoBridge:
         self, vid: str, keep_off: set[str], min_ahead_m: float, continue_m: float = 300.0
     ) -> str | None:
         """Send ``vid`` off the edges ``keep_off`` at the first junction at least ``min_ahead_m`` ahead where
-        one of its lanes leads onto another road (never a U-turn), then on along that road for about
+        one of its lanes leads right or straight onto another road (never a left turn: waiting in the junction
+        for a gap in the oncoming traffic, the car held up the participant behind it, 7 s on Monaco
+        166009792#2; never a U-turn), then on along that road for about
         ``continue_m`` (straight on where it can, still off ``keep_off``). Returns the edge it turns onto,
         or None when it already leaves ``keep_off`` within that stretch or no junction offers a way out."""
         veh, lane_api = self._sumo.vehicle, self._sumo.lane
@@ -472,7 +484,7 @@ class SumoBridge:
                 ahead += lane_api.getLength(f"{route[k]}_0")
             if ahead < min_ahead_m:
                 continue
-            out = self._exits(route[k], keep_off | {route[k]})
+            out = self._exits(route[k], keep_off | {route[k]}, prefer="rs", only="rs")
             if not out:
                 continue
             new = [*route[i : k + 1], out[0]]
@@ -484,15 +496,15 @@ class SumoBridge:
             return out[0] if self._set_route(vid, new) is None else None
         return None
 
-    def _exits(self, edge: str, avoid: set[str], prefer: str = "rls") -> list[str]:
-        """Edges a passenger car can reach from ``edge`` at its end junction, outside ``avoid``, no U-turns,
-        ordered by the directions in ``prefer`` (r right, l left, s straight)."""
+    def _exits(self, edge: str, avoid: set[str], prefer: str = "rls", only: str = "rls") -> list[str]:
+        """Edges a passenger car can reach from ``edge`` at its end junction in the directions ``only``,
+        outside ``avoid``, no U-turns, ordered by the directions in ``prefer`` (r right, l left, s straight)."""
         found: dict[str, int] = {}
         for n in range(self._sumo.edge.getLaneNumber(edge)):
             # link tuples: (toLane, hasPrio, isOpen, hasFoe, via, state, direction, length)
             for link in self._sumo.lane.getLinks(f"{edge}_{n}"):
                 to, direction = link[0].rsplit("_", 1)[0], link[6].lower()
-                if to in avoid or direction in ("t", "invalid") or to.startswith(":"):
+                if to in avoid or direction[0] not in only or to.startswith(":"):
                     continue
                 allowed = self._sumo.lane.getAllowed(link[0])
                 if allowed and "passenger" not in allowed:
@@ -712,6 +724,44 @@ class SumoBridge:
         elif not force and vid in self._lc_mode_before:
             veh.setLaneChangeMode(vid, self._lc_mode_before.pop(vid))
         veh.changeLane(vid, lane_index, duration_s)
+
+    def pull_over(self, vid: str, ahead_m: float, clear_of_end_m: float) -> str | None:
+        """Park ``vid`` at the roadside at least ``ahead_m`` ahead: an on-road parking stop, which takes it off
+        the lane once it stands there, so the cars behind it drive past. The spot is on its lane, or when
+        that ends too soon, early on the next edge of its route (its rightmost lane for cars); never within
+        ``clear_of_end_m`` of a lane's end (a junction's line). Returns the lane, or None in a junction, when
+        neither has room or SUMO refuses. It stays there until ``rejoin``."""
+        veh, lane_api = self._sumo.vehicle, self._sumo.lane
+        lane = veh.getLaneID(vid)
+        if not lane or lane.startswith(":"):
+            return None
+        pos = veh.getLanePosition(vid) + ahead_m
+        left = lane_api.getLength(lane) - veh.getLanePosition(vid)
+        if pos > lane_api.getLength(lane) - clear_of_end_m:
+            route, i = veh.getRoute(vid), veh.getRouteIndex(vid)
+            if i + 1 >= len(route):
+                return None
+            edge = route[i + 1]
+            lanes = [f"{edge}_{k}" for k in range(self._sumo.edge.getLaneNumber(edge))]
+            lane = next((ln for ln in lanes if _allows_cars(lane_api.getAllowed(ln))), lanes[0])
+            pos = max(ahead_m - left, PULL_OVER_PAST_JUNCTION_M)
+            if pos > lane_api.getLength(lane) - clear_of_end_m:
+                return None
+        edge, _, index = lane.rpartition("_")
+        try:
+            veh.setStop(vid, edge, pos=pos, laneIndex=int(index), duration=PARKED_FOR_GOOD_S, flags=1)
+        except Exception:  # libsumo.TraCIException: e.g. too close to stop in time
+            return None
+        return lane
+
+    def parked(self, vid: str) -> bool:
+        """Whether ``vid`` stands at the roadside (``pull_over``), off its lane."""
+        return bool(self._sumo.vehicle.isStoppedParking(vid))
+
+    def rejoin(self, vid: str) -> None:
+        """End ``vid``'s roadside stop: SUMO puts it back on its lane as soon as that is safe for the cars
+        approaching there."""
+        self._sumo.vehicle.resume(vid)
 
     def follower_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None:
         """(id, gap [m], speed [m/s]) of the nearest vehicle behind ``vid`` in the lane to its left (right)."""

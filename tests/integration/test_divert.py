@@ -50,6 +50,13 @@ def test_a_car_is_sent_off_the_way_and_never_back_onto_it(crossroads):
                 break
             seen.add(libsumo.vehicle.getRoadID("x"))
         assert exit_edge in seen and "EF" not in seen
+        # never off by a left turn: it would wait in the junction for the oncoming traffic, in front of the
+        # participant (at C and E the right-hand roads CS and ES2 count as the way here)
+        libsumo.route.add("r3", ["WC", "CE", "EF"])
+        libsumo.vehicle.add("z", "r3", depart="now", departPos="10", departSpeed="0")
+        libsumo.simulationStep()
+        assert bridge.divert("z", way | {"CS", "ES2"}, min_ahead_m=40.0) is None
+        assert bridge.divert("z", way | {"CS"}, min_ahead_m=40.0) == "ES2"  # right at E, not left at C
         # a car whose own route leaves the way before any junction could divert it is left alone
         libsumo.route.add("r2", ["WC", "CN"])
         libsumo.vehicle.add("y", "r2", depart="now", departPos="10", departSpeed="0")

@@ -719,6 +719,25 @@ def test_the_participant_keeps_behind_the_lead_standing_one_lane_over_and_drives
             assert d.ego.percept.leader_id is None and front > 100.0
 
 
+@pytest.mark.parametrize("at_roadside", [False, True])
+def test_the_participant_stops_behind_the_lead_standing_at_the_roadside_two_lanes_over(at_roadside):
+    """Letting cars pass, the lead stands at the roadside, which SUMO shows beside the road's rightmost lane:
+    6.4 m off the ego's path in the left lane of two. The participant stops behind it (it gets back in
+    ahead of them); the same car there, not letting cars pass, is beside the road, not ahead."""
+    d = Drive()
+    d.place()
+    car = _standing_one_lane_over(d, "lead", 60.0)
+    d.world.x_m[car] = 6.4
+    d.ego.lead_at_roadside = at_roadside
+    for _ in range(300):  # 30 s
+        d.step()
+    front = d.car.y + 0.5 * d.cfg.car.length_m
+    if at_roadside:
+        assert d.ego.percept.leader_id == "lead" and d.car.v < 0.1 and front < 60.0 - 4.5
+    else:
+        assert front > 100.0
+
+
 def test_a_cut_corner_keeps_the_twin_on_its_route_and_only_leaving_the_road_lets_sumo_map_it_freely():
     """Up to ON_ROUTE_M off the path's centre line (a right turn cut 2.1 m wide) SUMO maps the twin onto
     the route it holds; farther off, onto any lane (the driver may have left the route)."""

@@ -12,7 +12,14 @@ import pytest
 from cosim.driver.route import RoutePath
 from cosim.phases.courtesy import COURTESY_AFTER_S, CourtesyYield
 from cosim.phases.ego import priority_gap_s
-from cosim.phases.lead import DIVERT_KEEP_OFF_M, LANE_FORCE_AFTER_S, YIELD_TOGETHER_S, LeadVehicle
+from cosim.phases.lead import (
+    DIVERT_KEEP_OFF_M,
+    LANE_FORCE_AFTER_S,
+    LET_PAST_AFTER_S,
+    STOP_DECEL_MPS2,
+    YIELD_TOGETHER_S,
+    LeadVehicle,
+)
 from cosim.world import EGO_ID, LEAD_ID, World
 
 
@@ -34,6 +41,10 @@ class FakeBridge:
         self.ahead_beside: tuple[str, float, float] | None = None  # ... and the car ahead of it there
         self.behind: tuple[str, float] | None = None  # the car behind the lead in its lane (id, gap)
         self.leaders: dict[str, tuple[str, float]] = {}  # vehicle -> (its leader, gap) in its lane
+        self.roadside: str | None = None  # the lane the lead pulls over beside (None: no room there)
+        self.pulled_over: list[float] = []  # how far ahead it was asked to stand at the roadside
+        self.standing_beside = False  # it stands at the roadside
+        self.rejoined = 0
 
     def cap_speed(self, vid, speed):
         if vid != LEAD_ID:  # a priority car letting the pair in (CourtesyYield)
@@ -86,6 +97,19 @@ class FakeBridge:
     def leader_beside(self, vid, left):
         return self.ahead_beside
 
+    def pull_over(self, vid, ahead_m, clear_of_end_m):
+        assert vid == LEAD_ID
+        if self.roadside is not None:
+            self.pulled_over.append(ahead_m)
+        return self.roadside
+
+    def parked(self, vid):
+        return self.standing_beside
+
+    def rejoin(self, vid):
+        self.rejoined += 1
+        self.standing_beside = False
+
 
 class FakeEgo:
     """What the lead reads of the ego's phase: its front bumper on its route path (None: no path, the gap is
@@ -95,6 +119,7 @@ class FakeEgo:
         self.s_front_m, self.path = s_front_m, path
         self.percept = None
         self.courtesy = courtesy
+        self.lead_at_roadside = False
 
     def sees(self, leader):
         self.percept = SimpleNamespace(leader_present=leader is not None, leader_id=leader)
@@ -602,3 +627,92 @@ def test_the_lead_waits_for_a_gap_for_two_only_when_the_ego_is_the_car_behind_it
     sim.world.t_s = 0.2
     lead.step(sim.world)
     assert lead.waiting
+
+
+def _car(w: World, vid: str, x: float, y: float, heading: float = 0.0) -> int:
+    slot = w.add(vid)
+    w.x_m[slot], w.y_m[slot], w.heading_deg[slot], w.length_m[slot], w.width_m[slot] = x, y, heading, 5.0, 1.8
+    return slot
+
+
+def test_the_lead_pulls_over_for_a_car_that_stays_between_and_rejoins_ahead_of_the_ego():
+    """A car that came in between the lead and the ego and stays there (its route on the lead's way, no
+    junction to send it off: Monaco 166009792#2, 20 s) is let past: the lead stands at the roadside beyond
+    its braking distance, and gets back in once the car has passed it and the ego comes on."""
+    sim = fake_sim(gap_m=40.0, ego_speed=10.0)  # ego front at y = 0, lead's rear at y = 40
+    w = sim.world
+    w.speed_mps[w.slot_of[LEAD_ID]] = 10.0
+    sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -20.0), (0.0, 400.0)]), 20.0
+    car = _car(w, "scv7", 0.0, 25.0)  # between them, in their lane
+    sim.bridge.roadside, sim.bridge.exit_edge = "e_0", None
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(w)
+    sim.ego.sees("scv7")
+    k = 1
+    while not sim.bridge.pulled_over:
+        w.t_s = k * 0.1
+        lead.step(w)
+        k += 1
+    assert w.t_s == pytest.approx(0.1 + LET_PAST_AFTER_S, abs=0.15)
+    assert sim.bridge.pulled_over[0] >= 10.0**2 / (2.0 * STOP_DECEL_MPS2)  # it can stop there comfortably
+    assert [e.kind for e in sim.events] == ["lead_cut_in", "lead_let_past"] and lead.let_past == 1
+    assert sim.bridge.caps[-1] is None  # no cap of its own holds it short of the roadside stop
+    assert sim.ego.lead_at_roadside  # the participant keeps behind it there, whichever lane it is beside
+    sim.bridge.standing_beside = True
+    w.speed_mps[w.slot_of[LEAD_ID]] = 0.0
+    lead.step(w)
+    assert sim.bridge.rejoined == 0  # the car is still between them
+    w.y_m[car] = 56.0  # past the lead (its front at y = 45): the car's rear 6 m beyond it, room to get in
+    sim.ego.sees(LEAD_ID)  # the lead at the roadside is the nearest car on the ego's way
+    lead.step(w)
+    assert sim.bridge.rejoined == 1 and sim.events[-1].kind == "lead_rejoined"
+    assert not sim.ego.lead_at_roadside
+    lead.step(w)  # back to following-task duty: no second rejoin, no new let-past
+    assert sim.bridge.rejoined == 1 and lead.let_past == 1
+
+
+def test_at_the_roadside_the_lead_waits_there_while_the_ego_stands_far_back():
+    """A red that stopped only the ego (Krems 71582001: 75 s): the lead stays at the roadside, where the cars
+    turning in pass it, and drives on when the ego does."""
+    sim = fake_sim(gap_m=70.0, ego_speed=0.0)
+    w = sim.world
+    sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -20.0), (0.0, 400.0)]), 20.0
+    _car(w, "scv3", 0.0, 40.0)
+    sim.bridge.roadside, sim.bridge.exit_edge = "e_0", None
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(w)
+    sim.ego.sees("scv3")
+    for k in range(1, 70):
+        w.t_s = k * 0.1
+        lead.step(w)
+    assert lead.let_past == 1
+    w.remove("scv3")  # it has passed the lead and gone on
+    sim.bridge.standing_beside = True
+    sim.ego.sees(LEAD_ID)
+    lead.step(w)
+    assert sim.bridge.rejoined == 0  # clear, but the ego stands 70 m back
+    w.speed_mps[w.slot_of[EGO_ID]] = 3.0
+    lead.step(w)
+    assert sim.bridge.rejoined == 1
+
+
+def test_a_car_on_the_egos_way_beyond_a_turn_is_between_even_when_it_heads_across_the_ego():
+    """Standing at a red before a left turn, the ego faces north while the cars that turn in ahead of it from
+    the cross street drive west along its path: they come between it and the lead (Krems 71582001). A car
+    crossing the path there (heading north across the westbound road) does not."""
+    path = RoutePath([(0.0, -20.0), (0.0, 10.0), (-300.0, 10.0)])  # north, then left (west) at y = 10
+    sim = fake_sim(gap_m=0.0, ego_speed=0.0)
+    w = sim.world
+    lead_slot = w.slot_of[LEAD_ID]
+    w.x_m[lead_slot], w.y_m[lead_slot], w.heading_deg[lead_slot] = -80.0, 10.0, 270.0
+    sim.ego.path, sim.ego.s_front_m = path, 20.0  # the ego's front at (0, 0), at its line
+    _car(w, "turned_in", -40.0, 10.0, heading=270.0)
+    _car(w, "crossing", -20.0, 12.0, heading=0.0)
+    lead = _lead(sim)
+    for k, seen in enumerate([LEAD_ID, "crossing", LEAD_ID, "turned_in"]):
+        w.t_s = float(k)
+        sim.ego.sees(seen)
+        lead.step(w)
+    assert [e.vehicle for e in sim.events if e.kind == "lead_cut_in"] == ["turned_in"]
