@@ -50,6 +50,7 @@ REPASS_MARGIN_M = 5.0
 NEXT_LEADERS_SEEN = 3  # vehicles on the path the percept keeps, nearest first: the leader and those beyond it
 LEAD_BESIDE_M = 5.0  # the lead's rear this close to the path's centre line is ahead of the ego, in its lane or the next [m]
 LEAD_AT_ROADSIDE_M = 12.0  # ... and standing at the roadside, beside up to three lanes [m]
+ROADSIDE_KEEP_BACK_M = 6.0  # the participant stops this much farther back from the lead at the roadside [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
 )
@@ -391,26 +392,40 @@ class EgoController:
     def _leader_on_path(self, w, ego_slot: int, cx: float, cy: float, s_front: float) -> tuple[dict, list]:
         """The nearest vehicle whose rear is on the ego's own path ahead: what a driver sees in front of
         them, whichever SUMO lane it is on (a car the ego is about to change lanes behind, one in a bend);
-        with the percept's fields, (id, gap, speed) of the nearest NEXT_LEADERS_SEEN such vehicles."""
+        with the percept's fields, (id, gap, speed) of the nearest NEXT_LEADERS_SEEN such vehicles. A car
+        merging into the ego's way at a shallow angle is ahead from where its middle or front is on the
+        path, before its rear is: crawling in 2.5 m ahead of the ego, its rear still off the path and too
+        shallow to cross it, scv662 was neither leader nor crossing car, and the ego drove into its side
+        (Monaco 25177449, experiment P2)."""
         live, _ = w.live()
         near = live[np.hypot(w.x_m[live] - cx, w.y_m[live] - cy) < PREVIEW_AHEAD_M + 10.0]
         idx = near[near != ego_slot]
         if idx.size == 0:
             return {}, []
+        n = idx.size
         heading = np.radians(w.heading_deg[idx])  # World.heading_unit, for these vehicles only
+        hx, hy = np.sin(heading), np.cos(heading)
         length = w.length_m[idx]
-        rear_x = w.x_m[idx] - np.sin(heading) * length
-        rear_y = w.y_m[idx] - np.cos(heading) * length
-        half = PATH_HALF_WIDTH_M + 0.5 * (w.width_m[idx].sum() / idx.size)  # = .mean(), without its overhead
-        rows, s_rear = self.path.vehicles_on_path(
-            rear_x, rear_y, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half
-        )
+        xs = np.concatenate([w.x_m[idx] - hx * length, w.x_m[idx] - 0.5 * hx * length, w.x_m[idx]])
+        ys = np.concatenate([w.y_m[idx] - hy * length, w.y_m[idx] - 0.5 * hy * length, w.y_m[idx]])
+        half = PATH_HALF_WIDTH_M + 0.5 * (w.width_m[idx].sum() / n)  # = .mean(), without its overhead
+        rows, s_at = self.path.vehicles_on_path(xs, ys, s_front - 2.0, s_front + PREVIEW_AHEAD_M, half)
         kw = self._crossing(w, idx, heading, cx, cy, s_front, half)
-        if rows.size == 0:
+        veh = rows % n
+        if rows.size and (rows >= n).any():  # middle or front on the path: only cars heading its way
+            ux, uy = self.path.direction_at(s_at)
+            along = (ux * hx[veh] + uy * hy[veh] > 0.0) & (
+                np.abs(ux * hy[veh] - uy * hx[veh]) < CROSS_MIN_SIN
+            )
+            keep = (rows < n) | along
+            veh, s_at = veh[keep], s_at[keep]
+        if veh.size == 0:
             return kw, []
+        s_rear = np.full(n, np.inf)  # per vehicle, the nearest of its points on the path
+        np.minimum.at(s_rear, veh, s_at)
         order = np.argsort(s_rear, kind="stable")[:NEXT_LEADERS_SEEN]
-        seen = [(w.ids[int(idx[rows[k]])], max(0.0, float(s_rear[k] - s_front)), float(w.speed_mps[idx[rows[k]]]))
-                for k in order.tolist()]  # fmt: skip
+        seen = [(w.ids[int(idx[k])], max(0.0, float(s_rear[k] - s_front)), float(w.speed_mps[idx[k]]))
+                for k in order.tolist() if math.isfinite(s_rear[k])]  # fmt: skip
         vid, gap, speed = seen[0]
         return {**kw, "leader_present": True, "leader_id": vid, "leader_gap_m": gap,
                 "leader_speed_mps": speed}, seen  # fmt: skip
@@ -436,6 +451,8 @@ class EgoController:
         if rows.size == 0:
             return {}
         gap = float(s_rear[0]) - s_front
+        if self.lead_at_roadside:  # stop short of it: room for it to pull out in front (SUMO needs that)
+            gap = max(0.0, gap - ROADSIDE_KEEP_BACK_M)
         if seen.get("leader_present") and seen["leader_gap_m"] <= gap:
             return {}
         return {"leader_present": True, "leader_id": LEAD_ID, "leader_gap_m": gap,

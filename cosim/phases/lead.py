@@ -107,11 +107,16 @@ LANE_FORCE_FOLLOWER_MPS = 2.0
 # (``_divert_cut_in``), a car stayed between them up to the junction its route allowed, 20 s on Monaco
 # 166009792#2; and a red that stopped only the ego let a stream of cars from the cross street in between
 # them (Krems 71582001: 75 s, lead as leader 0.25) [s]
-LET_PAST_AFTER_S = 6.0
+LET_PAST_AFTER_S = 3.0
 # ... while the ego stands (a red that stopped only the ego: the cars turning in ahead of it keep coming, and
 # the farther the lead has moved on with them, the longer each takes to pass it) [s]
 LET_PAST_STANDING_AFTER_S = 2.0
 PULL_OVER_SPARE_M = 5.0  # the lead stands at the roadside this far beyond its braking distance [m]
+# the lead gets back in only with the ego standing or this far back: a headway [s], a comfortable stop [m/s^2]
+# and room to spare [m] (SUMO re-inserts it only where the car behind can stop)
+REJOIN_HEADWAY_S = 1.0
+REJOIN_EGO_DECEL_MPS2 = 3.0
+REJOIN_SPARE_M = 5.0
 PULL_OVER_CLEAR_M = 15.0  # ... and at least this far short of the lane's end: not at a junction's line [m]
 
 
@@ -206,8 +211,9 @@ class LeadVehicle:
         if lead is None or ego is None:
             return
         self.gap_m = self._gap(w, lead, ego)
-        if self._rejoining and float(w.speed_mps[lead]) > STAND_MPS:
+        if self._rejoining and float(w.speed_mps[lead]) > STAND_MPS:  # back on its lane, driving
             self._rejoining = False
+            self.ego.lead_at_roadside = False
         if self._pulled_over is not None or self._rejoining:
             self._log_cut_in(w)
             if self._pulled_over is not None:
@@ -550,20 +556,28 @@ class LeadVehicle:
 
     def _rejoin_when_clear(self, w: World, lead: int, ego: int) -> None:
         """Back onto its lane once the lead stands at the roadside, no car is left between it and the ego,
-        and the ego comes on (it drives, or stands within ``wait_beyond_m``): standing beside the road the
-        lead is the nearest car on the ego's way, which the participant stops behind
-        (``EgoController._lead_one_lane_over``), so SUMO has room to let the lead back in ahead of it."""
+        and the ego comes on far enough back for SUMO to let the lead in ahead of it (``_room_to_rejoin``).
+        Until the lead drives again the participant treats it as the car ahead
+        (``EgoController.lead_at_roadside``) and stops short of it: told to rejoin with the ego 6 m behind at
+        7 m/s, SUMO kept the lead off the road until the ego had passed it (Monaco, experiment P1)."""
         if not self.bridge.parked(LEAD_ID):
             return  # still on its way to the roadside stop
-        ego_comes = float(w.speed_mps[ego]) > STAND_MPS or self.gap_m <= self.wait_beyond_m
-        if not ego_comes or self._cars_between(w, lead, ego):
+        if not self._room_to_rejoin(float(w.speed_mps[ego])) or self._cars_between(w, lead, ego):
             return
         self.bridge.rejoin(LEAD_ID)
         self._pulled_over, self._rejoining = None, True
-        self.ego.lead_at_roadside = False
         self._between, self._ego_leader = None, LEAD_ID
         self._between_since.clear()
         self.emit(SumoEvent("lead_rejoined", LEAD_ID, f"ahead of the ego ({self.gap_m:.0f} m)", self.gap_m))
+
+    def _room_to_rejoin(self, v_ego: float) -> bool:
+        """Whether the ego comes on (drives, or stands within ``wait_beyond_m``) with room for the lead to
+        get back in ahead of it: standing, or far enough back to stop behind a car pulling out
+        (REJOIN_HEADWAY_S, then braking at REJOIN_EGO_DECEL_MPS2, REJOIN_SPARE_M to spare)."""
+        if v_ego <= STAND_MPS:
+            return self.gap_m <= self.wait_beyond_m
+        room = v_ego * REJOIN_HEADWAY_S + v_ego * v_ego / (2.0 * REJOIN_EGO_DECEL_MPS2) + REJOIN_SPARE_M
+        return self.gap_m >= room
 
     def _cars_between(self, w: World, lead: int, ego: int) -> bool:
         """Whether a vehicle heading the ego's way is on its path between its front and a little beyond the

@@ -733,9 +733,29 @@ def test_the_participant_stops_behind_the_lead_standing_at_the_roadside_two_lane
         d.step()
     front = d.car.y + 0.5 * d.cfg.car.length_m
     if at_roadside:
-        assert d.ego.percept.leader_id == "lead" and d.car.v < 0.1 and front < 60.0 - 4.5
+        assert (
+            d.ego.percept.leader_id == "lead" and d.car.v < 0.1 and front < 60.0 - 4.5 - 5.0
+        )  # room to pull out
     else:
         assert front > 100.0
+
+
+def test_the_participant_stops_for_a_car_merging_in_at_a_shallow_angle_before_its_rear_is_in_the_way():
+    """Monaco 25177449 (experiment P2): scv662 crawled into the ego's way 2.5 m ahead of it at a shallow
+    angle, its rear still off the path and too shallow to cross it; the ego, seeing neither a leader nor a
+    crossing car, drove into its side. Its middle on the path makes it the car ahead."""
+    d = Drive()
+    d.place()
+    w = d.world
+    car = w.add("scv662")
+    # heading 25 degrees west of north into the path (x = 0); front 0.4 m off it, rear 2.5 m off it
+    w.x_m[car], w.y_m[car], w.heading_deg[car], w.speed_mps[car] = 0.4, 40.0, 335.0, 0.0
+    w.length_m[car], w.width_m[car], w.edge_code[car] = 5.0, 1.8, w.intern_edge("a")
+    for _ in range(300):  # 30 s
+        d.step()
+    front = d.car.y + 0.5 * d.cfg.car.length_m
+    assert d.ego.percept.leader_id == "scv662" and d.car.v < 0.1
+    assert front < 40.0 - 0.5 * 5.0 * math.cos(math.radians(25.0))  # short of its middle, no contact
 
 
 def test_a_cut_corner_keeps_the_twin_on_its_route_and_only_leaving_the_road_lets_sumo_map_it_freely():

@@ -667,9 +667,40 @@ def test_the_lead_pulls_over_for_a_car_that_stays_between_and_rejoins_ahead_of_t
     sim.ego.sees(LEAD_ID)  # the lead at the roadside is the nearest car on the ego's way
     lead.step(w)
     assert sim.bridge.rejoined == 1 and sim.events[-1].kind == "lead_rejoined"
-    assert not sim.ego.lead_at_roadside
+    assert sim.ego.lead_at_roadside  # the participant keeps behind it until it drives again ...
+    lead.step(w)
+    w.speed_mps[w.slot_of[LEAD_ID]] = 3.0
+    lead.step(w)
+    assert not sim.ego.lead_at_roadside  # ... on its lane
     lead.step(w)  # back to following-task duty: no second rejoin, no new let-past
     assert sim.bridge.rejoined == 1 and lead.let_past == 1
+
+
+def test_the_lead_at_the_roadside_gets_back_in_only_with_room_in_front_of_the_ego():
+    """Told to rejoin with the ego 6 m behind at 7 m/s, SUMO kept the lead off the road until the ego had
+    passed it (Monaco, experiment P1): it goes only with the ego standing close behind or far enough back
+    to stop behind it."""
+    sim = fake_sim(gap_m=20.0, ego_speed=10.0)  # 10 m/s, 20 m back: too close to pull out in front of it
+    w = sim.world
+    sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -20.0), (0.0, 400.0)]), 20.0
+    _car(w, "scv7", 0.0, 10.0)
+    sim.bridge.roadside, sim.bridge.exit_edge = "e_0", None
+    lead = _lead(sim)
+    sim.ego.sees(LEAD_ID)
+    lead.step(w)
+    sim.ego.sees("scv7")
+    for k in range(1, 40):
+        w.t_s = k * 0.1
+        lead.step(w)
+    assert lead.let_past == 1
+    w.remove("scv7")
+    sim.bridge.standing_beside = True
+    sim.ego.sees(LEAD_ID)
+    lead.step(w)
+    assert sim.bridge.rejoined == 0
+    w.speed_mps[w.slot_of[EGO_ID]] = 0.0  # it has stopped behind the lead
+    lead.step(w)
+    assert sim.bridge.rejoined == 1
 
 
 def test_at_the_roadside_the_lead_waits_there_while_the_ego_stands_far_back():
