@@ -106,18 +106,19 @@ LANE_FORCE_FOLLOWER_MPS = 2.0
 # pass and drives on ahead of the ego, as a confederate lead does. Sent off at the next junction
 # (``_divert_cut_in``), a car stayed between them up to the junction its route allowed, 20 s on Monaco
 # 166009792#2; and a red that stopped only the ego let a stream of cars from the cross street in between
-# them (Krems 71582001: 75 s, lead as leader 0.25) [s]
+# them (Krems 71582001: 75 s, lead as leader 0.25). After 6 s, each cut-in still cost the following task
+# 10-15 s (Monaco baseline 0.77) [s]
 LET_PAST_AFTER_S = 3.0
 # ... while the ego stands (a red that stopped only the ego: the cars turning in ahead of it keep coming, and
 # the farther the lead has moved on with them, the longer each takes to pass it) [s]
 LET_PAST_STANDING_AFTER_S = 2.0
 PULL_OVER_SPARE_M = 5.0  # the lead stands at the roadside this far beyond its braking distance [m]
+PULL_OVER_CLEAR_M = 15.0  # ... and at least this far short of the lane's end: not at a junction's line [m]
 # the lead gets back in only with the ego standing or this far back: a headway [s], a comfortable stop [m/s^2]
 # and room to spare [m] (SUMO re-inserts it only where the car behind can stop)
 REJOIN_HEADWAY_S = 1.0
 REJOIN_EGO_DECEL_MPS2 = 3.0
 REJOIN_SPARE_M = 5.0
-PULL_OVER_CLEAR_M = 15.0  # ... and at least this far short of the lane's end: not at a junction's line [m]
 
 
 def _closing_cap(v_behind: float, gap_m: float, limit_m: float) -> float:

@@ -676,56 +676,48 @@ def test_the_lead_pulls_over_for_a_car_that_stays_between_and_rejoins_ahead_of_t
     assert sim.bridge.rejoined == 1 and lead.let_past == 1
 
 
-def test_the_lead_at_the_roadside_gets_back_in_only_with_room_in_front_of_the_ego():
-    """Told to rejoin with the ego 6 m behind at 7 m/s, SUMO kept the lead off the road until the ego had
-    passed it (Monaco, experiment P1): it goes only with the ego standing close behind or far enough back
-    to stop behind it."""
-    sim = fake_sim(gap_m=20.0, ego_speed=10.0)  # 10 m/s, 20 m back: too close to pull out in front of it
+def _at_the_roadside_with_no_car_left_between(gap_m: float, ego_speed: float):
+    """A car between the lead and the ego on a straight road until the lead has pulled over for it; then it
+    has passed and gone on, the lead stands at the roadside, the ego sees it ahead."""
+    sim = fake_sim(gap_m=gap_m, ego_speed=ego_speed)
     w = sim.world
     sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -20.0), (0.0, 400.0)]), 20.0
-    _car(w, "scv7", 0.0, 10.0)
+    _car(w, "scv3", 0.0, 0.5 * gap_m)
     sim.bridge.roadside, sim.bridge.exit_edge = "e_0", None
     lead = _lead(sim)
     sim.ego.sees(LEAD_ID)
     lead.step(w)
-    sim.ego.sees("scv7")
+    sim.ego.sees("scv3")
     for k in range(1, 40):
         w.t_s = k * 0.1
         lead.step(w)
     assert lead.let_past == 1
-    w.remove("scv7")
+    w.remove("scv3")
     sim.bridge.standing_beside = True
     sim.ego.sees(LEAD_ID)
-    lead.step(w)
+    return sim, lead
+
+
+def test_the_lead_at_the_roadside_gets_back_in_only_with_room_in_front_of_the_ego():
+    """Told to rejoin with the ego 6 m behind at 7 m/s, SUMO kept the lead off the road until the ego had
+    passed it (Monaco, experiment P1): it goes only with the ego standing close behind or far enough back
+    to stop behind it."""
+    sim, lead = _at_the_roadside_with_no_car_left_between(gap_m=20.0, ego_speed=10.0)  # too close at 10 m/s
+    lead.step(sim.world)
     assert sim.bridge.rejoined == 0
-    w.speed_mps[w.slot_of[EGO_ID]] = 0.0  # it has stopped behind the lead
-    lead.step(w)
+    sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 0.0  # it has stopped behind the lead
+    lead.step(sim.world)
     assert sim.bridge.rejoined == 1
 
 
 def test_at_the_roadside_the_lead_waits_there_while_the_ego_stands_far_back():
     """A red that stopped only the ego (Krems 71582001: 75 s): the lead stays at the roadside, where the cars
     turning in pass it, and drives on when the ego does."""
-    sim = fake_sim(gap_m=70.0, ego_speed=0.0)
-    w = sim.world
-    sim.ego.path, sim.ego.s_front_m = RoutePath([(0.0, -20.0), (0.0, 400.0)]), 20.0
-    _car(w, "scv3", 0.0, 40.0)
-    sim.bridge.roadside, sim.bridge.exit_edge = "e_0", None
-    lead = _lead(sim)
-    sim.ego.sees(LEAD_ID)
-    lead.step(w)
-    sim.ego.sees("scv3")
-    for k in range(1, 70):
-        w.t_s = k * 0.1
-        lead.step(w)
-    assert lead.let_past == 1
-    w.remove("scv3")  # it has passed the lead and gone on
-    sim.bridge.standing_beside = True
-    sim.ego.sees(LEAD_ID)
-    lead.step(w)
+    sim, lead = _at_the_roadside_with_no_car_left_between(gap_m=70.0, ego_speed=0.0)
+    lead.step(sim.world)
     assert sim.bridge.rejoined == 0  # clear, but the ego stands 70 m back
-    w.speed_mps[w.slot_of[EGO_ID]] = 3.0
-    lead.step(w)
+    sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 3.0
+    lead.step(sim.world)
     assert sim.bridge.rejoined == 1
 
 
