@@ -156,7 +156,8 @@ def opposite_edges(edges) -> dict[str, str]:
 
 
 def route_trips(pairs: list[tuple[str, str]], ends: list[str], opposite: dict[str, str], cost, table: RouteTable,
-                net_file: Path, workdir: Path) -> dict[tuple[str, str], tuple[str, ...] | None]:  # fmt: skip
+                net_file: Path, workdir: Path, turn_origin: bool = True
+                ) -> dict[tuple[str, str], tuple[str, ...] | None]:  # fmt: skip
     """A* routes for trips between two streets: each leaves its origin street and reaches its destination
     street in whichever direction (of the ones in ``ends``) gives the route of least ``cost``, as a driver
     heads off towards the destination. Drawn in one direction, 47 % of Krems' trips passed a junction twice,
@@ -164,10 +165,13 @@ def route_trips(pairs: list[tuple[str, str]], ends: list[str], opposite: dict[st
     lot of 860978174, where its tangle of junctions 0.2 m apart made SUMO's cars collide."""
     ok = set(ends)
 
-    def both(edge: str) -> list[str]:
-        return [edge] + ([opposite[edge]] if opposite.get(edge) in ok else [])
+    def both(edge: str, turn: bool = True) -> list[str]:
+        return [edge] + ([opposite[edge]] if turn and opposite.get(edge) in ok else [])
 
-    options = {p: [(o, d) for o in both(p[0]) for d in both(p[1]) if o != d] for p in dict.fromkeys(pairs)}
+    options = {
+        p: [(o, d) for o in both(p[0], turn_origin) for d in both(p[1]) if o != d]
+        for p in dict.fromkeys(pairs)
+    }
     routed = table.routes([c for cs in options.values() for c in cs], net_file, workdir)
     return {
         p: min((routed[c] for c in cs if routed.get(c)), key=cost, default=None) for p, cs in options.items()
@@ -344,14 +348,10 @@ def build_route_pool(comp: list, table: RouteTable, net_file: Path, workdir: Pat
         for j in rng.choice(len(dest_ids), POOL_ROUTES_PER_ORIGIN, p=w_dest)
     ]
     pairs = [p for p in dict.fromkeys(pairs) if p[0] != p[1]]
-    # each origin and destination street in its better direction: a route may start on its origin street's
-    # other direction, a spawn spot then (traffic spawns on the first edges of the pool's routes); kept in the
-    # drawn one, the trips that looped round to turn brought cars into the gridlock round Krems 860978174's
-    # parking lot in every experiment (SCV collisions there; the pair stood 300 s in its queue back to
-    # 271438869, make experiment P2 system_A)
+    # each origin as drawn (traffic spawns on any of them), the destination street in its better direction
     free_s = {e.getID(): e.getLength() / max(e.getSpeed(), 1.0) for e in comp}  # at the limit [s]
     routes = route_trips(pairs, dest_ids, opposite_edges(comp), lambda r: sum(free_s[e] for e in r), table,
-                         net_file, workdir)  # fmt: skip
+                         net_file, workdir, turn_origin=False)  # fmt: skip
     pool = list(dict.fromkeys(routes[p] for p in pairs if routes.get(p)))
     if not pool:
         raise CosimError("no origin/destination pair could be routed on this network")

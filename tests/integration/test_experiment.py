@@ -21,22 +21,17 @@ from cosim.runconfig import load_run_config
 from cosim.sim import Simulation
 
 ROOT = Path(__file__).resolve().parents[2]
-# P1 (baseline > system_A > system_B): its 40-s phases all follow the lead and meet both systems' warnings
-# (with 20-s phases a red light at the start of the second phase left it without a time gap, for either
-# participant, once the experiment's traffic stopped looping round Krems 860978174)
-PHASE_S = 40.0
-GOLDEN = ROOT / "tests" / "golden" / "paper_P1_3x40s.csv"
+# P2 (baseline > system_B > system_A): its 20-s phases all follow the lead and meet both systems' warnings
+GOLDEN = ROOT / "tests" / "golden" / "paper_P2_3x20s.csv"
 
 
-pytestmark = pytest.mark.slow  # two participants x 120 s of the protocol on Krems; SUMO-only runs of 40-120 s
+pytestmark = pytest.mark.slow  # two participants x 60 s of the protocol on Krems; SUMO-only runs of 40-120 s
 
 
 @pytest.fixture(scope="module")
 def short_experiment(tmp_path_factory):
-    """configs/experiment.yaml with 40-s phases and two participants (both system orders)."""
-    exp, base = load_experiment(
-        ROOT / "configs" / "experiment.yaml", participants=2, phase_duration_s=PHASE_S
-    )
+    """configs/experiment.yaml with 20-s phases and two participants (both system orders)."""
+    exp, base = load_experiment(ROOT / "configs" / "experiment.yaml", participants=2, phase_duration_s=20)
     out = tmp_path_factory.mktemp("exp")
     summary = run_experiment(exp, base, out, jobs=2, quiet=True)
     return out, summary
@@ -76,9 +71,7 @@ def test_summary_has_the_three_phases_per_participant(short_experiment):
 def test_results_from_kept_messages_equal_results_from_the_file(short_experiment, tmp_path):
     """The runner summarises from messages kept in memory; the file read back must give the same."""
     out, summary = short_experiment
-    exp, base = load_experiment(
-        ROOT / "configs" / "experiment.yaml", participants=2, phase_duration_s=PHASE_S
-    )
+    exp, base = load_experiment(ROOT / "configs" / "experiment.yaml", participants=2, phase_duration_s=20)
     for index, part in enumerate(summary["participants"]):
         start = start_time_s(exp, participant_config(exp, index, base).ego.depart_s)
         log = read(out / part["participant"] / "run.mcap", topics=SUMMARY_TOPICS)
@@ -95,10 +88,10 @@ def test_results_from_kept_messages_equal_results_from_the_file(short_experiment
 def test_time_gap_trace_matches_the_golden_one(short_experiment):
     """Fails when the simulation drifts: regenerate deliberately with COSIM_UPDATE_GOLDEN=1."""
     out, _ = short_experiment
-    produced = out / "P1" / "timegap.csv"
+    produced = out / "P2" / "timegap.csv"
     # a golden trace is worth keeping only while it covers what it guards: every phase follows the lead at
-    # some time gap, system B advises and warns, system A warns (a phase that stands at a red light has no
-    # time gap and no warning: the golden participant and phase length were changed twice for that)
+    # some time gap, system B advises and warns, system A warns (P1's system_B stood at a red light after
+    # the stop-line change: no time gap, no warning)
     rows = list(csv.DictReader(produced.open()))
     for system, levels in (("none", set()), ("B", {"advisory", "warning"}), ("A", {"warning"})):
         phase = [r for r in rows if r["system"] == system]
@@ -110,7 +103,7 @@ def test_time_gap_trace_matches_the_golden_one(short_experiment):
     result = compare_files(GOLDEN, produced)
     assert result.ok, result.table()
     # the MCAP of the same run gives the same trace as its CSV
-    assert compare_files(produced, out / "P1" / "run.mcap").ok
+    assert compare_files(produced, out / "P2" / "run.mcap").ok
 
 
 def test_compare_detects_a_drifted_trace(short_experiment, tmp_path):
