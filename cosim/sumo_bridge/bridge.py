@@ -47,6 +47,7 @@ STANDSTILL_SPEED_MPS = 0.05
 # this far apart (sumo.dlr.de/docs/Simulation/Traffic_Lights.html, "Actuated Traffic Lights") [s]
 ACTUATED_MAX_GAP_S = 3.0
 PARKED_FOR_GOOD_S = 86400.0  # a roadside stop lasts until ``rejoin`` ends it [s]
+STOP_PARKING = 1  # TraCI's stop flag for parking: off the lane, beside it
 # SUMO's position of a vehicle that is off the network for a moment: re-inserted after a roadside stop
 # (libsumo's INVALID_DOUBLE_VALUE, -2^30) [m]
 INVALID_POSITION = -1.0e9
@@ -749,7 +750,9 @@ class SumoBridge:
                 return None
         edge, _, index = lane.rpartition("_")
         try:
-            veh.setStop(vid, edge, pos=pos, laneIndex=int(index), duration=PARKED_FOR_GOOD_S, flags=1)
+            veh.setStop(
+                vid, edge, pos=pos, laneIndex=int(index), duration=PARKED_FOR_GOOD_S, flags=STOP_PARKING
+            )
         except Exception:  # libsumo.TraCIException: e.g. too close to stop in time
             return None
         return lane
