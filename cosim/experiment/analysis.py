@@ -131,6 +131,9 @@ def plot_timegap(cols: dict[str, np.ndarray], path: Path, title: str) -> None:
             va="top",
             fontsize=9,
         )
+        if not np.isfinite(tg[m]).any():  # an empty panel reads as "no close leader": say why it is empty
+            ax.text((t0 + t[m][-1]) / 2, 0.5, "no time-gap data in this phase", transform=ax.get_xaxis_transform(),
+                    ha="center", va="center", fontsize=10, color="tab:red")  # fmt: skip
     for y in (1.0, 2.0, 3.0):
         ax.axhline(y, color="0.8", lw=0.6, zorder=0)
     ax.set_xlim(t[0], t[-1])

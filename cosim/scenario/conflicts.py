@@ -216,9 +216,23 @@ def _osm_way(edge_id: str) -> str:
     return edge_id.split("#")[0]
 
 
+# A dead end's turnaround stays only where a car can turn round clear of the junction it came from: on a road
+# at least a turning circle long (AASHTO's passenger-car design vehicle, 7.3-m minimum radius: 14.6 m across).
+# Krems 34170840, a 2.4-m stub off the stop-controlled 271438869: route-pool and rerouted SCVs went in to
+# turn round, the first one waited on the main road for room beyond, and the queue behind it (with the ego)
+# stood 300 s. Without the turnaround the stub leaves the drivable component, so no route enters it.
+DEAD_END_TURN_MIN_M = 14.6
+
+
+def _no_room_to_turn(edge) -> bool:
+    """Whether dead-end ``edge`` is too short to turn round at its end (see DEAD_END_TURN_MIN_M)."""
+    return edge.getLength() < DEAD_END_TURN_MIN_M
+
+
 def turnaround_deletions(net) -> list[str]:
     """``<delete>`` lines for U-turns (``_is_u_turn``) where the edge has another way on and the U-turn's
-    target another way in."""
+    target another way in, and for the turnaround at the end of a dead end too short to turn round in
+    (``_no_room_to_turn``)."""
     lines = []
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getFunction() == "internal":
@@ -230,8 +244,10 @@ def turnaround_deletions(net) -> list[str]:
                 continue
             other_out = [t for t in outgoing if t is not to_edge]
             other_in = [f for f in to_edge.getIncoming() if f is not edge]
-            if not other_out or not other_in:
-                continue  # a dead end (or the only way into the reverse edge): the U-turn is needed
+            if not other_out and not _no_room_to_turn(edge):
+                continue  # a dead end to turn round in: the U-turn is needed
+            if other_out and not other_in:
+                continue  # the only way into the reverse edge
             for c in turns:
                 lines.append(
                     f"    <delete from={quoteattr(edge.getID())} to={quoteattr(to_edge.getID())} "

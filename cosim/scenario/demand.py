@@ -89,14 +89,21 @@ def drivable_component(net) -> list:
     edges = [e for e in net.getEdges() if e.getFunction() != "internal" and e.allows("passenger")]
     if not edges:
         raise CosimError("the network has no edge open to cars")
-    seeds = sorted(edges, key=lambda e: (-e.getPriority(), -e.getLength(), e.getID()))[:5]
+    # each seed's component is exact; main roads first, so the largest one is usually the first found. Seeded
+    # from the five main roads only, Munich (main roads joined to the rest only by turning round in short
+    # stubs, see cosim.scenario.conflicts.DEAD_END_TURN_MIN_M) got a component of one edge
+    seeds = sorted(edges, key=lambda e: (-e.getPriority(), -e.getLength(), e.getID()))
     best: set = set()
+    placed: set = set()  # edges whose component is known
     for seed in seeds:
-        if seed in best:
+        if len(best) >= len(edges) - len(placed):
+            break  # no component left can be larger
+        if seed in placed:
             continue
         fwd = set(net.getReachable(seed, vclass="passenger"))
         bwd = set(net.getReachable(seed, vclass="passenger", useIncoming=True))
         comp = (fwd & bwd) | {seed}
+        placed |= comp
         if len(comp) > len(best):
             best = comp
     return sorted(best, key=lambda e: e.getID())

@@ -129,6 +129,44 @@ def test_a_turn_that_doubles_back_within_a_car_length_is_a_u_turn(tmp_path):
     assert not [line for line in deleted if 'to="CX"' in line and 'from="SC"' not in line], deleted
 
 
+def test_no_turning_round_in_a_stub_too_short_for_it_and_no_cars_in_parking_aisles(tmp_path):
+    """Krems 34170840: route-pool and rerouted SCVs turned round in a 2.4-m stub off a main road; the first
+    one waited on the main road for room and the queue behind it stood 300 s. Krems 860978174: SCVs cut
+    through a parking lot whose junctions lie 0.2 m apart and collided there. The pipeline deletes the
+    turnaround at the end of a road shorter than a turning circle and closes parking aisles and driveways to
+    cars, so those leave the drivable component and no route enters them; a dead-end street and a plain
+    service road keep their turnaround."""
+    from osm_factory import OsmSketch
+
+    from cosim.scenario.conflicts import DEAD_END_TURN_MIN_M
+    from cosim.scenario.demand import drivable_component
+
+    s = OsmSketch()
+    corners = {"a": (0, 0), "b": (200, 0), "c": (400, 0), "d": (400, 300), "e": (200, 300), "f": (0, 300)}
+    ends = {"drive": (200, -25), "stub": (200, 312), "close": (520, 0), "yard": (0, -40), "p1": (300, 100),
+            "p2": (300, 200)}  # fmt: skip
+    for name, (x, y) in {**corners, **ends}.items():
+        s.node(name, x, y)
+    s.way(["a", "b", "c", "d", "e", "f", "a"], highway="residential", maxspeed="50")
+    s.way(["b", "e"], highway="residential", maxspeed="30")
+    driveway = s.way(["b", "drive"], highway="service", service="driveway")
+    stub = s.way(["e", "stub"], highway="residential")
+    cul_de_sac = s.way(["c", "close"], highway="residential")
+    yard = s.way(["a", "yard"], highway="service")
+    aisle = s.way(["c", "p1", "p2", "d"], highway="service", service="parking_aisle")  # a short cut
+    scn = build_scenario(s.write(tmp_path / "town.osm"), tmp_path / "scn", density="low", seed=1,
+                         log=lambda *a: None)  # fmt: skip
+    net = sumolib.net.readNet(str(scn.net_file))
+    comp = {e.getID() for e in drivable_component(net)}
+    for way, driven in ((driveway, False), (stub, False), (cul_de_sac, True), (yard, True), (aisle, False)):
+        edge = net.getEdge(way)
+        assert edge.allows("passenger") is (way not in (driveway, aisle)), way
+        assert (way in comp) is driven and (f"-{way}" in comp) is driven, (way, sorted(comp))
+    for way, turns in ((stub, False), (cul_de_sac, True), (yard, True)):
+        assert bool(net.getEdge(way).getOutgoing()) is turns, way
+    assert net.getEdge(stub).getLength() < DEAD_END_TURN_MIN_M < net.getEdge(yard).getLength()
+
+
 def test_no_lane_change_inside_a_junction_into_the_lane_a_slip_road_runs_beside(tmp_path):
     """Krems 448934090: lane 0 of a two-lane road feeds both the road on and a slip road leaving at a shallow
     angle, and the two internal lanes run side by side through the junction. SUMO's lane changer does not
