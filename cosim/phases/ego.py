@@ -47,6 +47,11 @@ ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is cert
 ON_ROUTE_M = 3.5
 # ... except within this of a junction the route passes a second time (``_in_junction_passed_before``) [m]
 REPASS_MARGIN_M = 5.0
+# ... and for this far after SUMO put the twin, mapped on its route, onto a road the route passed before:
+# keepRoute=1 searches the route's passed edges too (SUMO keeps them in the route it holds, whatever it is
+# given), and where such a road runs under or beside the ego's (Krems 38571954 over -51713752#0, seven edges
+# earlier) the twin went into the queue standing there every other step (3 SUMO collisions) [m]
+FREE_MAPPING_M = 100.0
 NEXT_LEADERS_SEEN = 3  # vehicles on the path the percept keeps, nearest first: the leader and those beyond it
 LEAD_BESIDE_M = 5.0  # the lead's rear this close to the path's centre line is ahead of the ego, in its lane or the next [m]
 LEAD_AT_ROADSIDE_M = 12.0  # ... and standing at the roadside, beside up to three lanes [m]
@@ -236,6 +241,8 @@ class EgoController:
         self._tls_cache = None  # (SUMO's next light, arc position and step when read)
         self._on_sumo_route = True  # SUMO holds the planned route ahead of the ego ...
         self._sumo_route_end: int | None = None  # ... up to this route index (exclusive); None: all of it
+        self._mapped_on_route = False  # the last pose was mapped onto SUMO's route (keepRoute=1) ...
+        self._free_mapping_until_s = -math.inf  # ... and is mapped freely up to this arc position
         self._route_renewed = False  # the route changed within what SUMO holds: SUMO must get it again
         self._repassed: list[tuple[float, float]] = []  # arc spans of junctions the route passes again ...
         self._repassed_for = None  # ... on this path
@@ -290,6 +297,8 @@ class EgoController:
                 self._route_changed(changed)
         limit, next_limit, next_dist = self.path.speed_limit(s_front)
         self._on_sumo_route = self._keep_sumo_route(w, slot, s_front)
+        if self._mapped_on_route and self._on_a_passed_edge(w, slot, s_front):
+            self._free_mapping_until_s = s_front + FREE_MAPPING_M
         kw, on_path = self._leader_on_path(w, slot, cx, cy, s_front)
         kw.update(self._lead_one_lane_over(w, s_front, kw))
         # SUMO has the ego's twin in the new lane from the moment it begins to enter it (write_back): the cars
@@ -739,7 +748,9 @@ class EgoController:
         mapped = p is not None and slot is not None and w.edge_code[slot] >= 0
         suspicious = not mapped or abs(p.lateral_error_m) > ON_PATH_M
         on_route = (self._on_sumo_route and mapped and abs(p.lateral_error_m) <= ON_ROUTE_M
+                    and self.s_front_m > self._free_mapping_until_s
                     and not self._in_junction_passed_before(self.s_front_m))  # fmt: skip
+        self._mapped_on_route = on_route
         if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
             x, y = self._new_lane.onto_new_lane(x, y)
         ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route)
@@ -759,6 +770,16 @@ class EgoController:
             "junction_gap_s": round(p.junction_gap_s, 2) if p and math.isfinite(p.junction_gap_s) else None,
             "driver_mode": getattr(getattr(self.driver, "debug", None), "mode", ""),
         }  # fmt: skip
+
+    def _on_a_passed_edge(self, w: World, slot: int, s_front: float) -> bool:
+        """Whether SUMO has the twin on an edge the route passed before the one the ego is on (or has just
+        left: SUMO may be a step behind), see FREE_MAPPING_M."""
+        code = w.edge_code[slot]
+        road = w.edge_names[code] if code >= 0 else ""
+        k = self.path.edge_index(s_front)
+        if not road or road.startswith(":") or road in self.route[max(0, k - 1) : k + 1]:
+            return False
+        return road in self.route[: max(0, k - 1)]
 
     def _in_junction_passed_before(self, s_front: float | None) -> bool:
         """Whether the ego's front is in (or within REPASS_MARGIN_M of) a junction its route has passed

@@ -51,6 +51,10 @@ STOP_PARKING = 1  # TraCI's stop flag for parking: off the lane, beside it
 # SUMO's position of a vehicle that is off the network for a moment: re-inserted after a roadside stop
 # (libsumo's INVALID_DOUBLE_VALUE, -2^30) [m]
 INVALID_POSITION = -1.0e9
+# SUMO reports a collision again every step the two bodies overlap, and where one car overlaps two it names
+# the pairs in turn (Krems, make experiment P1: ego/scv181 and ego/scv188 every other step, 30 events in
+# 3 s): a pair reported within this many steps is the same collision, reported once
+COLLISION_MEMORY_STEPS = 10
 PULL_OVER_PAST_JUNCTION_M = 10.0  # a roadside stop on the next edge is at least this far into it [m]
 
 
@@ -113,6 +117,20 @@ class _LaneTable(dict):
         return self._arrays
 
 
+def collision_onset(seen: dict[tuple[str, str], int], pair: tuple[str, str], step: int) -> bool:
+    """Whether SUMO's report of ``pair`` at ``step`` starts a collision (see COLLISION_MEMORY_STEPS);
+    records it in ``seen``."""
+    last = seen.get(pair)
+    seen[pair] = step
+    return last is None or step - last > COLLISION_MEMORY_STEPS
+
+
+def forget_collisions(seen: dict[tuple[str, str], int], step: int) -> None:
+    """Drop the pairs of ``seen`` not reported for COLLISION_MEMORY_STEPS."""
+    for pair in [p for p, last in seen.items() if step - last > COLLISION_MEMORY_STEPS]:
+        del seen[pair]
+
+
 class SumoBridge:
     def __init__(self, sumocfg, *, seed: int, step_s: float, gui: bool = False, traci: bool = False,
                  extra_args: tuple[str, ...] = ()):  # fmt: skip
@@ -140,7 +158,7 @@ class SumoBridge:
         self._unmapped_steps = 0
         self._pose_off_road = False
         self._ego_pose: tuple[float, float, float] | None = None  # last pose written to SUMO
-        self._colliding: set[tuple[str, str]] = set()
+        self._collision_seen: dict[tuple[str, str], int] = {}  # pair -> step SUMO last reported it
         self._removed: list[str] = []  # removed by cosim this step
         self._tls_logics: dict[tuple[str, str], list[tuple[float, float, str]] | None] = {}
         self._tls_max_gaps: dict[str, float] = {}
@@ -179,14 +197,13 @@ class SumoBridge:
             world.length_m[slot] = veh.getLength(vid)
             world.width_m[slot] = veh.getWidth(vid)
         events = [SumoEvent("teleport", v, self._where(world, v)) for v in sim.getStartingTeleportIDList()]
-        colliding = set()
-        for c in sim.getCollisions():  # SUMO repeats a collision every step the two overlap: report it once
-            colliding.add((c.collider, c.victim))
-            if (c.collider, c.victim) not in self._colliding:
+        for c in sim.getCollisions():
+            if collision_onset(self._collision_seen, (c.collider, c.victim), world.step):
                 detail = f"with {c.victim} ({c.type}) on {c.lane}"
                 kind = "collision" if self._bodies_touch(c.collider, c.victim) else "ego_twin_overlap"
                 events.append(SumoEvent(kind, c.collider, detail, c.colliderSpeed))
-        self._colliding = colliding
+        if self._collision_seen:
+            forget_collisions(self._collision_seen, world.step)
         self._read(world)
         ego = world.slot_of.get(self.ego_id) if self.ego_id else None
         if ego is not None:  # keepRoute=2 places an ego that left the road off-lane (empty lane id)

@@ -788,3 +788,26 @@ def test_sumo_maps_the_twin_freely_in_a_junction_the_route_passes_a_second_time(
     assert not any(passed_before(s) for s in (190.0, 205.0, 300.0, 405.0, 500.0))  # first passes
     assert all(passed_before(s) for s in (596.0, 600.0, 606.0, 616.0))  # J again, and 5 m either side
     assert not passed_before(700.0) and not passed_before(None)
+
+
+def test_a_twin_mapped_onto_an_edge_passed_before_is_mapped_freely_for_a_while():
+    """keepRoute=1 searches the edges SUMO's route has passed too: Krems 38571954 runs over -51713752#0,
+    seven edges earlier, and the twin flipped into the queue below every other step. Once SUMO puts the
+    twin there, the pose is mapped freely (keepRoute=2) for the next FREE_MAPPING_M."""
+    from cosim.phases.ego import FREE_MAPPING_M
+
+    d = Drive(edges=("a", "b", "c", "d"))
+    slot = d.place()
+    while d.world.edge_names[d.world.edge_code[slot]] != "c":
+        d.step()
+    assert d.bridge.writes[-1]["on_route"]
+    d.world.edge_code[slot] = d.world.intern_edge("a")  # SUMO matched the pose to the road passed before
+    d.step()
+    mis_mapped_at = d.ego.s_front_m
+    assert not d.bridge.writes[-1]["on_route"]
+    while d.ego.s_front_m < mis_mapped_at + FREE_MAPPING_M - 5.0:
+        d.step()
+        assert not d.bridge.writes[-1]["on_route"]
+    while d.ego.s_front_m < mis_mapped_at + FREE_MAPPING_M + 5.0:
+        d.step()
+    assert d.bridge.writes[-1]["on_route"]
