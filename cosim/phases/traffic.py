@@ -195,8 +195,8 @@ class TrafficAroundEgo:
         # distinct spots (two cars cannot start at one place) in a random order weighted by the lanes they
         # stand for, each taken only while its surroundings hold less than the target density, counting the
         # cars there and the ones placed before it. The first fill, spread over all spots at once, put 54
-        # cars on the 70 spots of Krems' start (38 per lane-km on the streets they stand on, five times the
-        # target) and every participant's baseline began in a 300-m queue
+        # cars on the 70 spots of Krems' start: 38 per lane-km on the streets they stood on, five times the
+        # target, all starting at once towards the same merges
         cars = w.valid & ~w.is_ego
         cand = self.spot_xy[idx]
         around = (np.hypot(cand[:, :1] - w.x_m[cars], cand[:, 1:] - w.y_m[cars]) <= LOCAL_M).sum(axis=1)

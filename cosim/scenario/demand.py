@@ -90,8 +90,8 @@ def drivable_component(net) -> list:
     if not edges:
         raise CosimError("the network has no edge open to cars")
     # each seed's component is exact; main roads first, so the largest one is usually the first found. Seeded
-    # from the five main roads only, Munich (main roads joined to the rest only by turning round in short
-    # stubs, see cosim.scenario.conflicts.DEAD_END_TURN_MIN_M) got a component of one edge
+    # from the five main roads only, a network whose main roads lie outside its largest component got one
+    # edge (Munich with turning round barred in every service dead end, a variant tried)
     seeds = sorted(edges, key=lambda e: (-e.getPriority(), -e.getLength(), e.getID()))
     best: set = set()
     placed: set = set()  # edges whose component is known
