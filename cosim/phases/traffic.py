@@ -200,7 +200,6 @@ class TrafficAroundEgo:
         cars = w.valid & ~w.is_ego
         cand = self.spot_xy[idx]
         around = (np.hypot(cand[:, :1] - w.x_m[cars], cand[:, 1:] - w.y_m[cars]) <= LOCAL_M).sum(axis=1)
-        near = np.hypot(cand[:, :1] - cand[:, 0], cand[:, 1:] - cand[:, 1]) <= LOCAL_M
         weight = self.spot_weight[idx]
         order = self.rng.choice(idx.size, size=idx.size, replace=False, p=weight / weight.sum())
         made = 0
@@ -210,7 +209,7 @@ class TrafficAroundEgo:
             k = idx[j]
             if around[j] >= self.spot_capacity[k]:
                 continue
-            around[near[j]] += 1
+            around[np.hypot(cand[:, 0] - cand[j, 0], cand[:, 1] - cand[j, 1]) <= LOCAL_M] += 1
             # from standstill, like a car pulling out (at speed, SUMO refuses about half of the insertions)
             routes = self.origin_routes[self.spot_origin[k]]
             rid = routes[int(self.rng.integers(len(routes)))]
