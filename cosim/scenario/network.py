@@ -17,7 +17,7 @@ import math
 import os
 import re
 from collections import defaultdict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -278,7 +278,9 @@ YELLOW_S = 3.0  # for a split green that had no yellow after it: netconvert's sh
 def split_permissive_phases(phases: list[SignalPhase],
                             links: dict[int, tuple[str, str, str]]) -> list[SignalPhase] | None:  # fmt: skip
     """The plan with one green per approach in each phase where a left turn waits at a permissive green on a
-    lane it shares with other movements and never gets a protected one; None when there is no such phase.
+    lane it shares with other movements and never gets a protected one, and in each phase that protects a
+    left turn while the other movements of its lane stand at red (there each approach gets all its
+    movements); None when there is no such phase.
 
     ``links``: the light's link index -> (approach edge, lane, direction). Queued behind a gap that may never
     come in the oncoming stream (Krems 255094759, where that stream turned into the same lane), such a left
@@ -286,20 +288,35 @@ def split_permissive_phases(phases: list[SignalPhase],
     (SUMO docs, Simulation/Traffic_Lights, "Automatically Generated TLS-Programs"). Split phasing serves
     the approaches of that phase one after the other, each with all its movements protected (FHWA Signal
     Timing Manual, 2nd ed., NCHRP Report 812, 2015: split phasing for shared through-left lanes); the other
-    phases keep netconvert's plan: at Krems 71582001 the main road keeps its shared green and its protected
-    lefts (24 + 6 s of 90) and only the side roads' shared phase is split, where one green per approach for
-    all five approaches left the main road 15 s of 90 and the experiment's pair queued there for whole phases.
-    The split phase's time is shared out equally."""
+    phases keep netconvert's plan: at Krems 71582001 the main road keeps its shared green (24 s of 90) and
+    only its protected-left phase and the side roads' shared phase are split, where one green per approach
+    for all five approaches left the main road 15 s of 90 and the experiment's pair queued there for whole
+    phases. The split phase's time is shared out equally."""
     protected = {i for ph in phases for i, c in enumerate(ph.state) if c == "G"}
     by_lane: dict[str, list[tuple[int, str]]] = defaultdict(list)
     for i, (_edge, lane, direction) in links.items():
         by_lane[lane].append((i, direction))
     waiting = set()  # left turns that only ever get a permissive green, on a lane shared with other movements
+    shared_lefts = []  # (left turns, the other movements of their lane) on lanes shared with other movements
     for lane_links in by_lane.values():
-        lefts = [i for i, d in lane_links if d in ("l", "L") and i not in protected]
-        if lefts and any(d not in ("l", "L", "t") for _, d in lane_links):
-            waiting |= {i for i in lefts if any(ph.state[i] == "g" for ph in phases)}
-    if not waiting:
+        lefts = [i for i, d in lane_links if d in ("l", "L")]
+        others = [i for i, d in lane_links if d not in ("l", "L", "t")]
+        if lefts and others:
+            shared_lefts.append((lefts, others))
+            waiting |= {i for i in lefts if i not in protected and any(ph.state[i] == "g" for ph in phases)}
+
+    def hollow(phase: SignalPhase) -> bool:
+        """A left turn's protected green while the other movements of its lane stand at red: a car going
+        straight at the head of the lane holds the turners behind it, and SUMO's actuated logic finds no
+        detector for the phase (a lane counts only where all its movements are green), so the phase ends at
+        its minimum whatever waits. Krems 71582001: 5 s per cycle of up to 215 s for the bridge's left turn
+        into Austraße, whose queue stood through whole cycles."""
+        return any(
+            any(phase.state[i] == "G" for i in lefts) and any(phase.state[j] == "r" for j in others)
+            for lefts, others in shared_lefts
+        )
+
+    if not waiting and not any(hollow(ph) for ph in phases):
         return None
     out: list[SignalPhase] = []
     k = 0
@@ -315,18 +332,40 @@ def split_permissive_phases(phases: list[SignalPhase],
         ):
             transition.append(phases[k])
             k += 1
-        if not any(green_phase.state[i] == "g" for i in waiting):
+        whole = hollow(green_phase)  # each approach gets all its movements, not only those green here
+        if not whole and not any(green_phase.state[i] == "g" for i in waiting):
             out += [green_phase, *transition]
             continue
         approaches = list(dict.fromkeys(links[i][0] for i in green if i in links))
         yellow_s = transition[0].duration_s if transition else YELLOW_S
         n = len(approaches)
         for approach in approaches:
-            mine = {i for i in green if i in links and links[i][0] == approach}
+            mine = {i for i in (links if whole else green) if i in links and links[i][0] == approach}
             lit = "".join("G" if i in mine else "r" for i in range(len(green_phase.state)))
             out.append(SignalPhase(_share(green_phase.duration_s, n), lit, _share(green_phase.min_s, n),
                                    _share(green_phase.max_s, n)))  # fmt: skip
             out.append(SignalPhase(yellow_s, lit.replace("G", "y")))
+    return _yellow_between_greens(out)
+
+
+def _yellow_between_greens(phases: list[SignalPhase]) -> list[SignalPhase]:
+    """Each yellow phase shows yellow exactly to the movements green before it and red in the next green,
+    the others green on stay green, the rest red; a yellow with nothing to show is left out. A split
+    puts new greens after netconvert's yellows, which showed yellow to movements green again next (Krems
+    71582001: the bridge's through traffic got yellow, then green)."""
+    greens = [k for k, ph in enumerate(phases) if "y" not in ph.state]
+    out = []
+    for k, ph in enumerate(phases):
+        if "y" not in ph.state or not greens:
+            out.append(ph)
+            continue
+        before = phases[max((g for g in greens if g < k), default=greens[-1])].state
+        after = phases[min((g for g in greens if g > k), default=greens[0])].state
+        state = "".join(
+            (b if a in "Gg" else "y") if b in "Gg" else "r" for b, a in zip(before, after, strict=True)
+        )
+        if "y" in state:
+            out.append(replace(ph, state=state))
     return out
 
 
