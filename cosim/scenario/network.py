@@ -285,7 +285,8 @@ def split_permissive_phases(phases: list[SignalPhase],
     ``links``: the light's link index -> (approach edge, lane, direction). Queued behind a gap that may never
     come in the oncoming stream (Krems 255094759, where that stream turned into the same lane), such a left
     holds up every car behind it. netconvert gives a left turn a protected phase only when it has its own lane
-    (SUMO docs, Simulation/Traffic_Lights, "Automatically Generated TLS-Programs"). Split phasing serves
+    (SUMO docs, Simulation/Traffic_Lights, "Automatically Generated TLS-Programs"), or, as at Krems
+    71582001, one in which the straight movement of its lane stands at red. Split phasing serves
     the approaches of that phase one after the other, each with all its movements protected (FHWA Signal
     Timing Manual, 2nd ed., NCHRP Report 812, 2015: split phasing for shared through-left lanes); the other
     phases keep netconvert's plan: at Krems 71582001 the main road keeps its shared green (24 s of 90) and
@@ -361,12 +362,17 @@ def _yellow_between_greens(phases: list[SignalPhase]) -> list[SignalPhase]:
             continue
         before = phases[max((g for g in greens if g < k), default=greens[-1])].state
         after = phases[min((g for g in greens if g > k), default=greens[0])].state
-        state = "".join(
-            (b if a in "Gg" else "y") if b in "Gg" else "r" for b, a in zip(before, after, strict=True)
-        )
+        state = "".join(_through_yellow(b, a) for b, a in zip(before, after, strict=True))
         if "y" in state:
             out.append(replace(ph, state=state))
     return out
+
+
+def _through_yellow(before: str, after: str) -> str:
+    """A link's state in the yellow between a green phase (``before``) and the next (``after``)."""
+    if before in "Gg":
+        return before if after in "Gg" else "y"
+    return before if before == after else "r"
 
 
 def _share(duration_s: float | None, n: int) -> float | None:
