@@ -343,8 +343,15 @@ def split_permissive_phases(phases: list[SignalPhase],
         for approach in approaches:
             mine = {i for i in (links if whole else green) if i in links and links[i][0] == approach}
             lit = "".join("G" if i in mine else "r" for i in range(len(green_phase.state)))
+            # a hollow phase is netconvert's short left-turn phase (--tls.left-green.time, 6 s) with the
+            # generic actuated maximum: each approach gets its planned time at most, so the other approaches
+            # keep their share of the cycle (Krems 71582001 with up to 25 s each: the side road's queue stood
+            # 161 s in make experiment's P3)
+            longest = _share(green_phase.max_s, n)
+            if whole and longest is not None:
+                longest = max(green_phase.duration_s, MIN_GREEN_S)
             out.append(SignalPhase(_share(green_phase.duration_s, n), lit, _share(green_phase.min_s, n),
-                                   _share(green_phase.max_s, n)))  # fmt: skip
+                                   longest))  # fmt: skip
             out.append(SignalPhase(yellow_s, lit.replace("G", "y")))
     return _yellow_between_greens(out)
 
