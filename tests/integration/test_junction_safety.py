@@ -78,6 +78,20 @@ def test_built_network_has_no_unsafe_junction_geometry(scenarios, name):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SHIPPED)
+def test_every_actuated_phase_has_a_detector_sumo_can_use(scenarios, name):
+    """SUMO counts a lane's detector only in phases that give all the lane's movements green; a phase without
+    one ends at its minimum whatever waits. Krems 71582001 protected the bridge's left turn while the straight
+    movement of its lane stood at red: 5 s per cycle, and the turning queue stood through whole cycles."""
+    from cosim.sumo_bridge.tools import run_tool
+
+    scn = scenarios[name]
+    run = run_tool("sumo", ["-c", str(scn.sumocfg), "--end", "1", "--no-step-log", "true"])
+    assert run.returncode == 0, run.errors
+    assert not [line for line in run.log.splitlines() if "actuated phase" in line and "no controlling" in line]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SHIPPED)
 def test_600s_of_plain_sumo_on_shipped_map(scenarios, name):
     """Issue 15.5's target: no collision of any kind, at most 1 % of the departed vehicles teleported.
 
