@@ -87,7 +87,9 @@ def test_every_actuated_phase_has_a_detector_sumo_can_use(scenarios, name):
     scn = scenarios[name]
     run = run_tool("sumo", ["-c", str(scn.sumocfg), "--end", "1", "--no-step-log", "true"])
     assert run.returncode == 0, run.errors
-    assert not [line for line in run.log.splitlines() if "actuated phase" in line and "no controlling" in line]
+    assert not [
+        line for line in run.log.splitlines() if "actuated phase" in line and "no controlling" in line
+    ]
 
 
 @pytest.mark.slow
