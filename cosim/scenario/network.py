@@ -317,7 +317,7 @@ def split_permissive_phases(phases: list[SignalPhase],
             for lefts, others in shared_lefts
         )
 
-    if not waiting and not any(hollow(ph) for ph in phases):
+    if not waiting and not any(hollow(ph) for ph in phases if "y" not in ph.state):
         return None
     out: list[SignalPhase] = []
     k = 0
