@@ -268,6 +268,23 @@ class RoutePath:
         on = (dist2[near, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
         return rows[on], s_at[on]
 
+    def near_junction(self, s: np.ndarray, reach_m: float) -> np.ndarray:
+        """Whether arc positions ``s`` lie within ``reach_m`` of a junction the path passes (between one
+        edge's end and the next one's start); all True for a path built without its edges."""
+        s = np.asarray(s, dtype=np.float64)
+        if len(self.edge_lanes) < 2:
+            return np.ones(s.shape, dtype=bool)
+        ends, starts = self._junction_spans
+        k = ends.searchsorted(s + reach_m, side="right") - 1  # the last junction that begins before
+        return (k >= 0) & (s - reach_m <= starts[np.maximum(k, 0)])
+
+    @cached_property
+    def _junction_spans(self) -> tuple[np.ndarray, np.ndarray]:
+        """(begin, end) arc positions of the junctions the path passes, in order."""
+        ends = np.array([b for _, b, _, _ in self.edge_lanes[:-1]], dtype=np.float64)
+        starts = np.array([a for a, _, _, _ in self.edge_lanes[1:]], dtype=np.float64)
+        return ends, starts
+
     def direction_at(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unit vectors (x, y) of the path's direction at arc positions ``s``."""
         ax, ay, dx, dy, seg2, seg_len = self._segments

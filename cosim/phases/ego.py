@@ -67,6 +67,10 @@ CROSS_TIMES_S = np.arange(0.0, 3.01, 0.5)
 CROSS_MIN_SIN = math.sin(math.radians(30.0))  # nearer the route's direction: a leader or a merging car
 EGO_PULL_AWAY_MPS2 = 1.5  # the ego's arrival at the crossing is estimated accelerating at this
 CROSS_MARGIN_S = 1.0  # the ego goes first only if its rear is past the crossing this long before the car
+# ... and only where the ways cross in or by a junction of the route: elsewhere one passes over the other
+# (Krems: the trunk 38571954 runs over -51713752#0, whose queue the driver took for crossing traffic and
+# stood for on the bridge, the lead 40 m ahead; a body still in the junction it left lies within this)
+CROSS_JUNCTION_REACH_M = 10.0
 # Lane changes on the path (RoutePath.lane_changes): the driver moves over only into a gap in the lanes it
 # enters. The gap is judged for when the front bumper reaches the point where the car begins to enter the
 # next lane (LaneChange.enter_s), predicted at constant speeds from MERGE_LOOK_M before it; the ego
@@ -494,6 +498,7 @@ class EgoController:
         veh, t_at = rows // xs[0].size, times.ravel()[rows // 2]
         ux, uy = self.path.direction_at(s_hit)
         crossing = np.abs(ux * hy[veh] - uy * hx[veh]) >= CROSS_MIN_SIN
+        crossing &= self.path.near_junction(s_hit, CROSS_JUNCTION_REACH_M)
         if not crossing.any():
             return {}
         veh, t_at, s_hit = veh[crossing], t_at[crossing], s_hit[crossing]

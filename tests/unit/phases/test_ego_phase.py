@@ -383,6 +383,23 @@ def test_a_car_crossing_in_the_junction_ahead_is_let_through():
     assert d.ego.percept.crossing_dist_m == math.inf and d.ego.percept.leader_id == "x1"
 
 
+def test_a_car_on_a_road_passing_under_the_route_is_no_crossing_car():
+    """Krems: the trunk 38571954 runs over -51713752#0, and the driver stood on the bridge for the queue
+    below. Ways cross only in or by a junction of the route (here 40-45 m along it)."""
+    edges = [(0.0, 40.0, "a", 0), (45.0, 150.0, "b", 0), (155.0, 300.0, "c", 0)]
+    path = RoutePath([(0.0, 0.0), (0.0, 300.0)], (), [(0.0, 13.89)], edges)
+    assert path.near_junction(np.array([20.0, 31.0, 42.0, 54.0, 56.0, 148.0]), 10.0).tolist() == [
+        False, True, True, True, False, True,
+    ]  # fmt: skip
+    for y_m, edge, stops in ((25.0, "below", False), (42.0, "x", True)):
+        d = Drive()
+        d.ego.path = path
+        d.place()
+        _crosser(d, y_m, -1.0, 270.0, 0.0, edge)  # standing across the route (front 1 m west of it)
+        d.step()
+        assert (d.ego.percept.crossing_dist_m < math.inf) == stops, (y_m, d.ego.percept.crossing_dist_m)
+
+
 def test_the_ego_stops_short_of_a_car_standing_across_its_way_and_goes_once_it_has_gone():
     d = Drive()
     d.place()
