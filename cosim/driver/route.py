@@ -274,16 +274,17 @@ class RoutePath:
         s = np.asarray(s, dtype=np.float64)
         if len(self.edge_lanes) < 2:
             return np.ones(s.shape, dtype=bool)
-        ends, starts = self._junction_spans
-        k = ends.searchsorted(s + reach_m, side="right") - 1  # the last junction that begins before
-        return (k >= 0) & (s - reach_m <= starts[np.maximum(k, 0)])
+        begin, end = self._junction_spans
+        k = begin.searchsorted(s + reach_m, side="right") - 1  # the last junction that begins before
+        return (k >= 0) & (s - reach_m <= end[np.maximum(k, 0)])
 
     @cached_property
     def _junction_spans(self) -> tuple[np.ndarray, np.ndarray]:
-        """(begin, end) arc positions of the junctions the path passes, in order."""
-        ends = np.array([b for _, b, _, _ in self.edge_lanes[:-1]], dtype=np.float64)
-        starts = np.array([a for a, _, _, _ in self.edge_lanes[1:]], dtype=np.float64)
-        return ends, starts
+        """(begin, end) arc positions of the junctions the path passes, in order: from one edge's end to the
+        next edge's start."""
+        begin = np.array([b for _, b, _, _ in self.edge_lanes[:-1]], dtype=np.float64)
+        end = np.array([a for a, _, _, _ in self.edge_lanes[1:]], dtype=np.float64)
+        return begin, end
 
     def direction_at(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unit vectors (x, y) of the path's direction at arc positions ``s``."""
