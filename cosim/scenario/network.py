@@ -347,11 +347,9 @@ def split_permissive_phases(phases: list[SignalPhase],
             # generic actuated maximum: each approach gets its planned time at most, so the other approaches
             # keep their share of the cycle (Krems 71582001 with up to 25 s each: the side road's queue stood
             # 161 s in make experiment's P3)
-            longest = _share(green_phase.max_s, n)
-            if whole and longest is not None:
-                longest = max(green_phase.duration_s, MIN_GREEN_S)
+            longest = max(green_phase.duration_s, MIN_GREEN_S) if whole else _share(green_phase.max_s, n)
             out.append(SignalPhase(_share(green_phase.duration_s, n), lit, _share(green_phase.min_s, n),
-                                   longest))  # fmt: skip
+                                   longest if green_phase.max_s is not None else None))  # fmt: skip
             out.append(SignalPhase(yellow_s, lit.replace("G", "y")))
     return _yellow_between_greens(out)
 
