@@ -429,7 +429,9 @@ def revised_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
         if len(nodes) == 1 and not _short_link_to_a_light(next(iter(nodes))):
             links = {}
             for inl, _, i in conns:
-                direction = next((c.getDirection() for c in inl.getOutgoing() if c.getTLLinkIndex() == i), "s")
+                direction = next(
+                    (c.getDirection() for c in inl.getOutgoing() if c.getTLLinkIndex() == i), "s"
+                )
                 links[i] = (inl.getEdge().getID(), inl.getID(), direction)
         for program_id, program in tls.getPrograms().items():
             phases = [SignalPhase(ph.duration, ph.state, _dur(ph.minDur), _dur(ph.maxDur))

@@ -122,7 +122,12 @@ def test_a_long_actuated_cycle_is_held_to_the_maximum():
 def test_a_cycle_within_the_maximum_or_a_fixed_plan_is_left_as_it_is():
     short = phases("GGrr", "yyrr", "rrGG", "rryy")  # 2 x 50 + 2 x 3 = 106 s
     assert capped_cycle(short) is short
-    fixed = [SignalPhase(90.0, "GGrr"), SignalPhase(3.0, "yyrr"), SignalPhase(90.0, "rrGG"), SignalPhase(3.0, "rryy")]
+    fixed = [
+        SignalPhase(90.0, "GGrr"),
+        SignalPhase(3.0, "yyrr"),
+        SignalPhase(90.0, "rrGG"),
+        SignalPhase(3.0, "rryy"),
+    ]
     assert capped_cycle(fixed) is fixed  # nothing actuated to shorten
 
 
