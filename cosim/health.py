@@ -16,7 +16,8 @@ experiment phase):
   that departed.
 
 ``status`` is ``degraded`` with the reasons in ``problems`` whenever one of them misses what a drive the
-results can stand on needs (the thresholds below); a run never reports ``ok`` with an empty drive.
+results can stand on needs (the thresholds below), or when the ego reached the end of a route that could not
+be extended (``ROUTE_END_M``); a run never reports ``ok`` with an empty drive.
 """
 
 from __future__ import annotations
@@ -41,6 +42,9 @@ MIN_LEAD_LEADER_SHARE = 0.9  # ... and the lead must be the direct leader at lea
 MAX_TELEPORT_SHARE = 0.01  # of the vehicles that departed
 PRESENT_WITHIN_S = 1.0  # the ego is in the simulation this soon after its departure time [s]
 MIN_WINDOW_S = 30.0  # shorter windows are not judged on distance and shares [s]
+# a ``route_not_extended`` event with less than this left ahead of the ego: it reached the end of its route
+# (a map whose every way on turns round, e.g. one junction cut out of a town) [m]
+ROUTE_END_M = 10.0
 
 
 def involves_ego(vehicle: str, detail: str) -> bool:
@@ -85,8 +89,10 @@ class DriveHealth:
         self.all_t.append(t)
         self.departed.append(int(np.count_nonzero(w.depart_step[w.valid] == w.step)))
         for ev in events:
-            if ev.kind in ("collision", "teleport", "lead_cut_in", "ego_stall"):
+            if ev.kind in ("collision", "teleport", "lead_cut_in"):
                 self.events.append((t, ev.kind, involves_ego(ev.vehicle, ev.detail)))
+            elif ev.kind == "route_not_extended" and ev.value is not None and ev.value < ROUTE_END_M:
+                self.events.append((t, "route_end", True))
         ego = w.slot_of.get(EGO_ID)
         if ego is None:
             return []
@@ -101,7 +107,10 @@ class DriveHealth:
         self.lead_leader.append(leader == LEAD_ID if lead_is_leader is None else lead_is_leader)
         self.at_red.append(red)
         stall = self._watch_stall(t, speed, red, percept, driver_mode)
-        return [stall] if stall is not None else []
+        if stall is None:
+            return []
+        self.events.append((t, stall.kind, True))  # counted here: the caller logs it after this step
+        return [stall]
 
     def _watch_stall(self, t: float, speed: float, red: bool, percept, driver_mode) -> SumoEvent | None:
         """An ``ego_stall`` event, once, when a standstill outside red lights (creeps of less than CREEP_M
@@ -142,7 +151,7 @@ class DriveHealth:
         events = [(k, v) for te, k, v in self.events if t0 - 1e-9 <= te <= t1 + 1e-9]
         count = {
             k: sum(1 for kind, _ in events if kind == k)
-            for k in ("collision", "teleport", "lead_cut_in", "ego_stall")
+            for k in ("collision", "teleport", "lead_cut_in", "ego_stall", "route_end")
         }
         departed = (
             int(np.asarray(self.departed)[(all_t >= t0 - 1e-9) & (all_t <= t1 + 1e-9)].sum())
@@ -170,11 +179,11 @@ class DriveHealth:
             "vehicles_departed": departed,
             "teleport_share": round(count["teleport"] / departed, 4) if departed else 0.0,
         }
-        rep["problems"] = self._problems(rep, t0)
+        rep["problems"] = self._problems(rep, t0, route_ended=count["route_end"] > 0)
         rep["status"] = "degraded" if rep["problems"] else "ok"
         return rep
 
-    def _problems(self, rep: dict, t0: float) -> list[str]:
+    def _problems(self, rep: dict, t0: float, route_ended: bool = False) -> list[str]:
         if not self.ego_expected:
             return []
         out = []
@@ -189,6 +198,11 @@ class DriveHealth:
             out.append(f"the ego stood still for {rep['longest_standstill_s']:.0f} s")
         if rep["stalls"]:
             out.append(f"{rep['stalls']} stall(s) outside red lights (see the ego_stall events)")
+        if route_ended:
+            out.append(
+                "the ego reached the end of its route: the map has no way on from there without turning "
+                "round (see the route_not_extended events)"
+            )
         if judged and self.has_lead:
             if rep["following_share"] < MIN_FOLLOWING_SHARE:
                 out.append(f"following only {rep['following_share']:.0%} of the time")
