@@ -139,7 +139,7 @@ class LeadBridge(FoesBridge, Protocol):
 
     def tls_max_gap_s(self, tls_id: str) -> float: ...
 
-    def next_link(self, vid: str) -> tuple[str, float, str] | None: ...
+    def next_link(self, vid: str, within_m: float = math.inf) -> tuple[str, float, str] | None: ...
 
     def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None: ...
 
@@ -398,7 +398,7 @@ class LeadVehicle:
     def _yield_cap(self, w: World) -> float | None:
         """Speed cap that holds the lead at a yield line until the ego is right behind it and the gap in the
         priority traffic suits both, else None."""
-        link = self.bridge.next_link(LEAD_ID)
+        link = self.bridge.next_link(LEAD_ID, YIELD_HOLD_M)  # farther: no hold (and no costly question)
         if link is None:
             self._yield_wait = None
             return None

@@ -801,19 +801,23 @@ class SumoBridge:
         nid, gap = min(found, key=lambda f: f[1])
         return nid, gap, self._sumo.vehicle.getSpeed(nid)
 
-    def next_link(self, vid: str) -> tuple[str, float, str] | None:
+    def next_link(self, vid: str, within_m: float = math.inf) -> tuple[str, float, str] | None:
         """(SUMO link state, distance to it [m], direction) of the link at the end of the vehicle's lane; None
-        inside a junction or at the end of its route."""
+        inside a junction, at the end of its route or farther than ``within_m`` (then SUMO is not asked for
+        the links: ``getNextLinks`` costs more than the rest of the lead's step)."""
         veh = self._sumo.vehicle
         lane = veh.getLaneID(vid)
         if not lane or lane.startswith(":"):
+            return None
+        dist = self._sumo.lane.getLength(lane) - veh.getLanePosition(vid)
+        if dist > within_m:
             return None
         links = veh.getNextLinks(vid)
         if not links:
             return None
         # (approachedLane, hasPrio, isOpen, hasFoe, approachedInternal, state, direction, length)
         first = links[0]
-        return first[5], self._sumo.lane.getLength(lane) - veh.getLanePosition(vid), first[6]
+        return first[5], dist, first[6]
 
     def next_tls(self, vid: str) -> tuple[str, int, float, str] | None:
         """(tls id, link index, distance to the stop line [m], state char) of the next light, if any."""

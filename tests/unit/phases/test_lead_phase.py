@@ -65,8 +65,8 @@ class FakeBridge:
     def tls_max_gap_s(self, tls_id):
         return 3.0
 
-    def next_link(self, vid):
-        return self.link
+    def next_link(self, vid, within_m=math.inf):
+        return self.link if self.link is None or self.link[1] <= within_m else None
 
     def yield_foes(self, vid, lookahead_m):
         return self.foes
