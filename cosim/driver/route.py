@@ -89,12 +89,16 @@ class RoutePath:
         limits: list[tuple[float, float]] = ((0.0, 13.89),),
         edge_lanes: list[tuple[float, float, str, int]] = (),
         lane_changes: list[LaneChange] = (),
+        via_lanes: list[tuple[float, float, str]] = (),
     ):
         """``xy``: (N, 2) centre-line points; ``limits``: (arc position where it starts, speed [m/s]);
         ``edge_lanes``: per edge of the route, in order, (arc positions where the path is on it, edge id,
         index of the lane it takes there, where it leaves the edge); ``lane_changes``: where it moves to
-        another lane, by arc position."""
+        another lane, by arc position; ``via_lanes``: the junctions' internal lanes it drives through, (arc
+        positions where it is on one, lane id)."""
         self.edge_lanes = list(edge_lanes)
+        self.via_lanes = list(via_lanes)
+        self._via_start = [a for a, _, _ in self.via_lanes]
         self.lane_changes = list(lane_changes)
         self.lane_change_s = [c.s_start for c in self.lane_changes]
         xy = np.asarray(xy, dtype=np.float64)
@@ -124,6 +128,7 @@ class RoutePath:
         entry_lane = None
         came_by: set[str] = set()  # the path's lanes into the edge it is on (its own, never a foe's)
         edge_lanes: list[tuple[float, float, str, int]] = []
+        via_lanes: list[tuple[float, float, str]] = []
         lane_changes: list[LaneChange] = []
         plan = _LanePlan(net, route)
         for i, eid in enumerate(route):
@@ -163,10 +168,12 @@ class RoutePath:
                                            c.getDirection(), into_roundabout, i))  # fmt: skip
                 came_by = {lane.getID()}
                 for via in _via_chain(net, c):
+                    via_start = line.length
                     line.extend([tuple(p[:2]) for p in via.getShape()])
+                    via_lanes.append((via_start, line.length, via.getID()))
                     came_by.add(via.getID())
                 entry_lane = c.getToLane()
-        return cls(line.pts, stop_lines, limits, edge_lanes, lane_changes)
+        return cls(line.pts, stop_lines, limits, edge_lanes, lane_changes, via_lanes)
 
     def lane_on(self, edge_id: str, near_s: float) -> int | None:
         """The lane the path takes on ``edge_id`` where it passes that edge nearest to arc position ``near_s``
@@ -210,6 +217,18 @@ class RoutePath:
         cross = dx[k] * (y - ay[k]) - dy[k] * (x - ax[k])
         s = float(self.s[lo + k] + t[k] * seg_len[k])
         return s, math.copysign(math.sqrt(dist2[k]), cross), k in (0, len(dist2) - 1)
+
+    def lane_at(self, s: float) -> tuple[str, int] | None:
+        """(edge id, lane index) of the lane the path is on at arc position ``s``: a junction's internal lane
+        inside one, else the route edge's lane; None off the path's recorded lanes."""
+        k = bisect.bisect_right(self._via_start, s) - 1
+        if k >= 0 and s <= self.via_lanes[k][1]:
+            edge, _, index = self.via_lanes[k][2].rpartition("_")
+            return edge, int(index)
+        for a, b, eid, lane in self.edge_lanes:
+            if a <= s <= b:
+                return eid, lane
+        return None
 
     def edge_index(self, s: float) -> int:
         """Index in the route of the edge at arc position ``s`` (the edge just left while in a junction)."""

@@ -144,8 +144,8 @@ class EgoBridge(FoesBridge, Protocol):
 
     def cap_speed(self, vid: str, speed_mps: float | None) -> None: ...
 
-    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, *,
-                  verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
+    def write_ego(self, x_m: float, y_m: float, heading_deg: float, speed_mps: float, *, edge_hint: str = "",
+                  lane_hint: int = -1, verify_on_road: bool = True, on_route: bool = False) -> SumoEvent | None: ...  # fmt: skip
 
 
 class EgoPhysics(Protocol):
@@ -752,13 +752,28 @@ class EgoController:
         # on its own path and mapped to a lane by SUMO: no need to search the network for the road
         mapped = p is not None and slot is not None and w.edge_code[slot] >= 0
         suspicious = not mapped or abs(p.lateral_error_m) > ON_PATH_M
+        # in a junction passed before, the free mapping once the twin is inside it; while SUMO still has it on
+        # the road into it, the on-route mapping takes the route's next internal lane (SUMO searches the
+        # upcoming edges first), where the free one may take another that starts at the same point
+        twin_inside = mapped and w.edge_names[w.edge_code[slot]].startswith(":")
         on_route = (self._on_sumo_route and mapped and abs(p.lateral_error_m) <= ON_ROUTE_M
                     and self.s_front_m > self._free_mapping_until_s
-                    and not self._in_junction_passed_before(self.s_front_m))  # fmt: skip
+                    and not (twin_inside and self._in_junction_passed_before(self.s_front_m)))  # fmt: skip
         self._mapped_on_route = on_route
         if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
             x, y = self._new_lane.onto_new_lane(x, y)
-        ev = self.bridge.write_ego(x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route)
+        hint = {}
+        if not on_route and self.s_front_m is not None:
+            # SUMO maps the pose onto the nearest lane; where a junction's internal lanes start together (a
+            # lane that turns and one that goes straight) either is nearest: the path's own breaks the tie
+            # (Krems cluster_206089614_71582005, passed twice: the twin took the lane to 24980491#2 and SUMO
+            # held a route off the ego's for 2 s)
+            lane = self.path.lane_at(self.s_front_m + max(st.speed_mps, 0.0) * self.step_s)  # where it is now
+            if lane is not None:
+                hint = {"edge_hint": lane[0], "lane_hint": lane[1]}
+        ev = self.bridge.write_ego(
+            x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route, **hint
+        )
         if ev:
             self.emit(ev)
         return {

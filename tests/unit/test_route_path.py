@@ -57,6 +57,17 @@ def test_a_second_point_tracked_near_its_own_arc_position_leaves_the_ego_project
     assert p._last_s == s_ego
 
 
+def test_the_lane_at_a_position_is_the_internal_lane_inside_a_junction_and_the_edges_lane_on_it():
+    """SUMO's hint for placing the twin (cosim.phases.ego): two internal lanes that start at one point (one
+    turning, one going straight) are a tie for SUMO's free mapping; the path's own breaks it."""
+    path = RoutePath([(0.0, 0.0), (0.0, 130.0)], edge_lanes=[(0.0, 100.0, "a", 1), (110.0, 130.0, "b", 0)],
+                     via_lanes=[(100.0, 110.0, ":j_12_0")])  # fmt: skip
+    assert path.lane_at(50.0) == ("a", 1)
+    assert path.lane_at(104.0) == (":j_12", 0)
+    assert path.lane_at(120.0) == ("b", 0)
+    assert path.lane_at(140.0) is None
+
+
 def test_the_path_keeps_the_lane_it_arrives_on_when_that_lane_leads_on():
     """Arriving on lane 2 of a three-lane road whose every lane continues, the path stays on lane 2 instead
     of crossing two lanes (blind to the cars beside it) to reach lane 0."""
