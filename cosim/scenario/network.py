@@ -8,7 +8,8 @@ approaches (so that they are the minor road), a 5 km/h passage on give-way conne
 that contradict OSM ``turn:lanes`` arrows are removed; parking aisles and driveways are closed to cars
 (``NOT_THROUGH_SERVICE``). Further netconvert rounds fix the junctions'
 geometry (``cosim.scenario.conflicts``); last, the signal plans get split phasing where a left turn would
-wait at a permissive green on a lane it shares (``revised_signal_plans``).
+wait at a permissive green on a lane it shares, and every actuated cycle is held to ``MAX_CYCLE_S``
+(``revised_signal_plans``).
 """
 
 from __future__ import annotations
@@ -275,8 +276,7 @@ MIN_GREEN_S = 5.0  # netconvert's minDur of an actuated green
 YELLOW_S = 3.0  # for a split green that had no yellow after it: netconvert's shortest yellow
 # The longest cycle an actuated plan may run to when every green extends to its maximum. Longer cycles add
 # delay without adding capacity (Webster 1958, Road Research Technical Paper 39); practice keeps actuated
-# cycles within about 120 s (FHWA Traffic Signal Timing Manual, FHWA-HOP-08-024, 2008, ch. 5 / HCM 6th ed.
-# guidance). netconvert gives every actuated green up to 50 s (--tls.max-dur), so a light with four or more
+# cycles within about 120 s (FHWA Traffic Signal Timing Manual, FHWA-HOP-08-024, 2008). netconvert gives every actuated green up to 50 s (--tls.max-dur), so a light with four or more
 # greens runs to 150-180 s: Krems 71582001 (five approaches) served the bridge's protected left 6 s per
 # cycle of up to 180 s, and its queue stood through whole cycles.
 MAX_CYCLE_S = 120.0
@@ -690,6 +690,6 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     write_signal_plans(final, plans)
     fixes["signal_plans_revised"] = len(plans)
     with fix_log.open("a") as fh:
-        fh.write("".join(f"{t}: signal plan split by approach and/or held to a {MAX_CYCLE_S:g}-s cycle\n"
-                         for t in plans))  # fmt: skip
+        fh.write("".join(f"{t}: signal plan revised (split by approach where a left turn waits on a shared "
+                         f"lane; cycle held to {MAX_CYCLE_S:g} s)\n" for t in plans))  # fmt: skip
     return NetworkBuild(final, placements, junction_kind, signed, tls_approaches, runs, fixes)
