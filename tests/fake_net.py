@@ -135,25 +135,18 @@ class _Phase:
 
 
 class _Program:
-    def __init__(self, states: list[str], max_s: float | None = None):
+    def __init__(self, states: list[str]):
         self.phases = [_Phase(s) for s in states]
-        if max_s is not None:  # gap-actuated: greens of 5 s to max_s, yellows of 3 s
-            for ph in self.phases:
-                if "y" in ph.state:
-                    ph.duration = 3.0
-                else:
-                    ph.minDur, ph.maxDur = 5.0, max_s
 
     def getPhases(self):
         return self.phases
 
 
 class TrafficLight:
-    """Light ``tid`` over the connections of ``lanes`` (their link indices), one programme of ``states``
-    (gap-actuated with greens of up to ``max_s`` when given, else fixed)."""
+    """Light ``tid`` over the connections of ``lanes`` (their link indices), one programme of ``states``."""
 
-    def __init__(self, tid: str, lanes: list[Lane], states: list[str], max_s: float | None = None):
-        self.tid, self.lanes, self.states, self.max_s = tid, lanes, states, max_s
+    def __init__(self, tid: str, lanes: list[Lane], states: list[str]):
+        self.tid, self.lanes, self.states = tid, lanes, states
 
     def getID(self):
         return self.tid
@@ -162,7 +155,7 @@ class TrafficLight:
         return [(lane, c.getToLane(), c.getTLLinkIndex()) for lane in self.lanes for c in lane.getOutgoing()]
 
     def getPrograms(self):
-        return {"0": _Program(self.states, self.max_s)}
+        return {"0": _Program(self.states)}
 
 
 class Net:

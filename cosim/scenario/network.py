@@ -8,8 +8,7 @@ approaches (so that they are the minor road), a 5 km/h passage on give-way conne
 that contradict OSM ``turn:lanes`` arrows are removed; parking aisles and driveways are closed to cars
 (``NOT_THROUGH_SERVICE``). Further netconvert rounds fix the junctions'
 geometry (``cosim.scenario.conflicts``); last, the signal plans get split phasing where a left turn would
-wait at a permissive green on a lane it shares, and every actuated cycle is held to ``MAX_CYCLE_S``
-(``revised_signal_plans``).
+wait at a permissive green on a lane it shares (``split_signal_plans``).
 """
 
 from __future__ import annotations
@@ -84,7 +83,7 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         # fixed 90-s cycles the ego drove 1144 m on Helsinki in 300 s (seed 1), 1536 m gap-actuated
         "--tls.default-type", TLS_TYPE,
         # opposite approaches share a green (netconvert's default layout); a left turn without its own lane
-        # waits at no permissive green: its phase is split into one green per approach (revised_signal_plans)
+        # waits at no permissive green: its phase is split into one green per approach (split_signal_plans)
         "--tls.layout", "opposites",
         "--ramps.guess", "true",
         # OSM width tags split over the lanes give 1.5-m lanes on narrow two-way streets (Helsinki
@@ -274,12 +273,6 @@ class SignalPhase:
 
 MIN_GREEN_S = 5.0  # netconvert's minDur of an actuated green
 YELLOW_S = 3.0  # for a split green that had no yellow after it: netconvert's shortest yellow
-# The longest cycle an actuated plan may run to when every green extends to its maximum. Longer cycles add
-# delay without adding capacity (Webster 1958, Road Research Technical Paper 39); practice keeps actuated
-# cycles within about 120 s (FHWA Traffic Signal Timing Manual, FHWA-HOP-08-024, 2008). netconvert gives every actuated green up to 50 s (--tls.max-dur), so a light with four or more
-# greens runs to 150-180 s: Krems 71582001 (five approaches) served the bridge's protected left 6 s per
-# cycle of up to 180 s, and its queue stood through whole cycles.
-MAX_CYCLE_S = 120.0
 
 
 def split_permissive_phases(phases: list[SignalPhase],
@@ -392,54 +385,28 @@ def _share(duration_s: float | None, n: int) -> float | None:
     return None if duration_s is None else max(MIN_GREEN_S, round(duration_s / n))
 
 
-def capped_cycle(phases: list[SignalPhase], max_cycle_s: float = MAX_CYCLE_S) -> list[SignalPhase]:
-    """The plan with its actuated greens' maxima shortened in proportion to what each may extend beyond its
-    minimum, so that the cycle with every green at its maximum lasts at most ``max_cycle_s`` (whole
-    seconds, rounded down); unchanged when it already does or when its minima alone exceed it."""
-    longest = sum(ph.duration_s if ph.max_s is None else ph.max_s for ph in phases)
-    if longest <= max_cycle_s:
-        return phases
-    fixed = sum(ph.duration_s if ph.max_s is None else ph.min_s for ph in phases)
-    extendable = longest - fixed
-    if fixed >= max_cycle_s or extendable <= 0:
-        return phases
-    keep = (max_cycle_s - fixed) / extendable
-    out = []
-    for ph in phases:
-        if ph.max_s is None:
-            out.append(ph)
-            continue
-        top = ph.min_s + math.floor((ph.max_s - ph.min_s) * keep)
-        out.append(replace(ph, duration_s=min(ph.duration_s, top), max_s=top))
-    return out
-
-
-def revised_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
-    """The plans this pipeline changes: light id -> programme id -> phases. Every actuated plan is held to
-    ``MAX_CYCLE_S`` (``capped_cycle``), after ``split_permissive_phases`` where it applies. Lights that
-    control several junctions (tls.join) are not split, and neither is a light with another light at the
-    end of a short road (``SHORT_LINK_M``): a green for one approach at a time is too short to empty a queue
-    into a road that holds a few cars and that the neighbour's plan empties at its own times (Helsinki
-    30471502#2 into the 30-m 30259739#0: the queue stood through every green for whole experiment phases)."""
+def split_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
+    """The plans ``split_permissive_phases`` changes: light id -> programme id -> phases. Lights that control
+    several junctions (tls.join) keep their plan, and so does a light with another light at the end of a
+    short road (``SHORT_LINK_M``): a green for one approach at a time is too short to empty a queue into a
+    road that holds a few cars and that the neighbour's plan empties at its own times (Helsinki 30471502#2
+    into the 30-m 30259739#0: the queue stood through every green for whole experiment phases)."""
     plans: dict[str, dict[str, list[SignalPhase]]] = {}
     for tls in sorted(net.getTrafficLights(), key=lambda t: t.getID()):
         conns = tls.getConnections()
         nodes = {inl.getEdge().getToNode() for inl, _, _ in conns}
-        links = None  # link index -> (approach edge, lane, direction), for lights that may be split
-        if len(nodes) == 1 and not _short_link_to_a_light(next(iter(nodes))):
-            links = {}
-            for inl, _, i in conns:
-                direction = next(
-                    (c.getDirection() for c in inl.getOutgoing() if c.getTLLinkIndex() == i), "s"
-                )
-                links[i] = (inl.getEdge().getID(), inl.getID(), direction)
+        if len(nodes) != 1 or _short_link_to_a_light(next(iter(nodes))):
+            continue
+        links = {}
+        for inl, _, i in conns:
+            direction = next((c.getDirection() for c in inl.getOutgoing() if c.getTLLinkIndex() == i), "s")
+            links[i] = (inl.getEdge().getID(), inl.getID(), direction)
         for program_id, program in tls.getPrograms().items():
             phases = [SignalPhase(ph.duration, ph.state, _dur(ph.minDur), _dur(ph.maxDur))
                       for ph in program.getPhases()]  # fmt: skip
-            plan = (split_permissive_phases(phases, links) if links is not None else None) or phases
-            plan = capped_cycle(plan)
-            if plan != phases:
-                plans.setdefault(tls.getID(), {})[program_id] = plan
+            split = split_permissive_phases(phases, links)
+            if split is not None:
+                plans.setdefault(tls.getID(), {})[program_id] = split
     return plans
 
 
@@ -686,10 +653,11 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         con.unlink()
         ends.unlink(missing_ok=True)
         runs.append((f"fixes{i + 2}", run))
-    plans = revised_signal_plans(read_network(final, programs=True))
+    plans = split_signal_plans(read_network(final, programs=True))
     write_signal_plans(final, plans)
-    fixes["signal_plans_revised"] = len(plans)
+    fixes["signal_plans_split"] = len(plans)
     with fix_log.open("a") as fh:
-        fh.write("".join(f"{t}: signal plan revised (split by approach where a left turn waits on a shared "
-                         f"lane; cycle held to {MAX_CYCLE_S:g} s)\n" for t in plans))  # fmt: skip
+        fh.write(
+            "".join(f"{t}: a permissive left on a shared lane, its phase split by approach\n" for t in plans)
+        )
     return NetworkBuild(final, placements, junction_kind, signed, tls_approaches, runs, fixes)

@@ -94,25 +94,6 @@ def test_every_actuated_phase_has_a_detector_sumo_can_use(scenarios, name):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", SHIPPED)
-def test_no_actuated_cycle_runs_beyond_the_maximum(scenarios, name):
-    """Every light's cycle, with each green at its maximum, lasts at most MAX_CYCLE_S. Before the cap Krems
-    71582001 ran to 180 s and two joined lights of Krems and Helsinki to 150 s."""
-    from cosim.scenario.network import MAX_CYCLE_S
-    from cosim.sumo_bridge.network import read_network
-
-    net = read_network(scenarios[name].net_file, programs=True)
-    longest = {}
-    for tls in net.getTrafficLights():
-        for program in tls.getPrograms().values():
-            longest[tls.getID()] = sum(
-                ph.duration if float(ph.maxDur) < 0 else float(ph.maxDur) for ph in program.getPhases()
-            )
-    assert longest, "the shipped map has traffic lights"
-    assert {t: s for t, s in longest.items() if s > MAX_CYCLE_S} == {}
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("name", SHIPPED)
 def test_600s_of_plain_sumo_on_shipped_map(scenarios, name):
     """Issue 15.5's target: no collision of any kind, at most 1 % of the departed vehicles teleported.
 

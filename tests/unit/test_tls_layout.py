@@ -1,17 +1,11 @@
-"""Which signal phases get one green per approach and how long a cycle may run (cosim.scenario.network:
-split_permissive_phases, capped_cycle, revised_signal_plans)."""
+"""Which signal phases get one green per approach (cosim.scenario.network: split_permissive_phases,
+split_signal_plans)."""
 
 from __future__ import annotations
 
 from fake_net import Conn, Edge, Lane, Net, Node, TrafficLight
 
-from cosim.scenario.network import (
-    MAX_CYCLE_S,
-    SignalPhase,
-    capped_cycle,
-    revised_signal_plans,
-    split_permissive_phases,
-)
+from cosim.scenario.network import SignalPhase, split_permissive_phases, split_signal_plans
 
 
 def approach(node: Node, *conns: tuple[str, int], **edge) -> Lane:
@@ -76,64 +70,22 @@ def test_a_protected_left_that_holds_its_lanes_straight_at_red_gets_the_whole_ap
 
 def test_a_light_with_a_waiting_left_gets_a_split_plan():
     shared = approach(J, ("s", 0), ("l", 1))
-    plans = revised_signal_plans(Net(traffic_lights=[TrafficLight("j", [shared], ["Gg", "yy", "rr"])]))
+    plans = split_signal_plans(Net(traffic_lights=[TrafficLight("j", [shared], ["Gg", "yy", "rr"])]))
     assert [ph.state for ph in plans["j"]["0"]] == ["GG", "yy", "rr"]
 
 
 def test_a_light_over_several_junctions_keeps_its_plan():
     a, b = approach(J, ("s", 0), ("l", 1)), approach(Node("k"), ("s", 2))
-    assert revised_signal_plans(Net(traffic_lights=[TrafficLight("joined", [a, b], ["GgG", "rrr"])])) == {}
+    assert split_signal_plans(Net(traffic_lights=[TrafficLight("joined", [a, b], ["GgG", "rrr"])])) == {}
 
 
 def test_a_light_a_short_road_away_from_another_keeps_its_plan():
     """One green per approach would starve the short road between two lights (Helsinki 30259739#0)."""
     j = Node("j2")
     shared = approach(j, ("s", 0), ("l", 1), from_node=Node("other_light"), length_m=30.0)
-    assert revised_signal_plans(Net(traffic_lights=[TrafficLight("j2", [shared], ["Gg", "yy", "rr"])])) == {}
+    assert split_signal_plans(Net(traffic_lights=[TrafficLight("j2", [shared], ["Gg", "yy", "rr"])])) == {}
     far = Node("j3")
     shared = approach(far, ("s", 0), ("l", 1), from_node=Node("other_light"), length_m=200.0)
     assert list(
-        revised_signal_plans(Net(traffic_lights=[TrafficLight("j3", [shared], ["Gg", "yy", "rr"])]))
+        split_signal_plans(Net(traffic_lights=[TrafficLight("j3", [shared], ["Gg", "yy", "rr"])]))
     ) == ["j3"]
-
-
-def longest_cycle_s(plan: list[SignalPhase]) -> float:
-    return sum(ph.duration_s if ph.max_s is None else ph.max_s for ph in plan)
-
-
-def test_a_long_actuated_cycle_is_held_to_the_maximum():
-    """Four greens of up to 50 s and a left-turn phase of up to 6 s run to 224 s; held to 120 s, each
-    green keeps its minimum and gives up the same share of what it could extend."""
-    plan = phases("GGrr", "yyrr", "rrGG", "rryy", "GrGr", "yryr", "rGrG", "ryry")
-    plan.append(SignalPhase(6.0, "GrrG", 5.0, 6.0))
-    plan.append(SignalPhase(3.0, "yrry"))
-    assert longest_cycle_s(plan) == 4 * 50 + 6 + 5 * 3
-    capped = capped_cycle(plan)
-    assert longest_cycle_s(capped) <= MAX_CYCLE_S
-    assert longest_cycle_s(capped) > MAX_CYCLE_S - len(plan)  # rounded down to whole seconds, no more
-    greens = [ph for ph in capped if ph.max_s is not None]
-    assert [ph.min_s for ph in greens] == [5.0] * 5
-    assert [ph.max_s for ph in greens[:4]] == [greens[0].max_s] * 4 and greens[0].max_s < 50
-    assert greens[4].max_s == 5.0  # 1 s of extension, shortened like the others: floor(1 * 0.44)
-    assert all(ph.min_s <= ph.duration_s <= ph.max_s for ph in greens)
-    assert [ph.state for ph in capped] == [ph.state for ph in plan]  # only the times change
-
-
-def test_a_cycle_within_the_maximum_or_a_fixed_plan_is_left_as_it_is():
-    short = phases("GGrr", "yyrr", "rrGG", "rryy")  # 2 x 50 + 2 x 3 = 106 s
-    assert capped_cycle(short) is short
-    fixed = [
-        SignalPhase(90.0, "GGrr"),
-        SignalPhase(3.0, "yyrr"),
-        SignalPhase(90.0, "rrGG"),
-        SignalPhase(3.0, "rryy"),
-    ]
-    assert capped_cycle(fixed) is fixed  # nothing actuated to shorten
-
-
-def test_a_joined_light_is_not_split_but_its_cycle_is_held():
-    a, b = approach(J, ("s", 0), ("l", 1)), approach(Node("k"), ("s", 2))
-    states = ["GgG", "yyy", "rrG", "rry", "Grr", "yrr"]
-    plans = revised_signal_plans(Net(traffic_lights=[TrafficLight("joined", [a, b], states, max_s=80.0)]))
-    assert [ph.state for ph in plans["joined"]["0"]] == states
-    assert longest_cycle_s(plans["joined"]["0"]) <= MAX_CYCLE_S
