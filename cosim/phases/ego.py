@@ -762,7 +762,7 @@ class EgoController:
         self._mapped_on_route = on_route
         if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
             x, y = self._new_lane.onto_new_lane(x, y)
-        hint = {}
+        edge_hint, lane_hint = "", -1  # none
         if not on_route and self.s_front_m is not None:
             # SUMO maps the pose onto the nearest lane; where a junction's internal lanes start together (a
             # lane that turns and one that goes straight) either is nearest: the path's own breaks the tie
@@ -770,10 +770,9 @@ class EgoController:
             # held a route off the ego's for 2 s)
             lane = self.path.lane_at(self.s_front_m + max(st.speed_mps, 0.0) * self.step_s)  # where it is now
             if lane is not None:
-                hint = {"edge_hint": lane[0], "lane_hint": lane[1]}
-        ev = self.bridge.write_ego(
-            x, y, angle, st.speed_mps, verify_on_road=suspicious, on_route=on_route, **hint
-        )
+                edge_hint, lane_hint = lane
+        ev = self.bridge.write_ego(x, y, angle, st.speed_mps, edge_hint=edge_hint, lane_hint=lane_hint,
+                                   verify_on_road=suspicious, on_route=on_route)  # fmt: skip
         if ev:
             self.emit(ev)
         return {

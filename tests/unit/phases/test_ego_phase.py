@@ -96,7 +96,8 @@ class FakeBridge:
                 self.let_in.append(vid)
             self.caps[vid] = speed_mps
 
-    def write_ego(self, x_m, y_m, heading_deg, speed_mps, *, verify_on_road=True, on_route=False):
+    def write_ego(self, x_m, y_m, heading_deg, speed_mps, *, edge_hint="", lane_hint=-1, verify_on_road=True,
+                  on_route=False):  # fmt: skip
         self.writes.append(dict(x=x_m, y=y_m, heading=heading_deg, speed=speed_mps, verify=verify_on_road,
                                 on_route=on_route))  # fmt: skip
         return None
