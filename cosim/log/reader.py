@@ -132,8 +132,9 @@ def _columns(messages: list[dict]) -> dict[str, np.ndarray]:
 _NUMERIC_TYPES = {int, float, type(None)}
 
 
-def read(path: str | Path, topics: list[str] | None = None, keep_raw: bool = False) -> Log:
-    """Per-topic columns of a cosim MCAP log; ``topics`` limits what is decoded."""
+def read(path: str | Path, topics=None, keep_raw: bool = False) -> Log:
+    """Per-topic columns of a cosim MCAP log; ``topics`` (a collection of names, or a predicate on a name)
+    limits what is decoded."""
     path = Path(path)
     if not path.is_file():
         raise CosimError(f"log file {path} does not exist")
@@ -142,6 +143,7 @@ def read(path: str | Path, topics: list[str] | None = None, keep_raw: bool = Fal
     counts: dict[str, int] = defaultdict(int)
     metadata: dict[str, dict[str, str]] = {}
     start = end = None
+    wanted = topics if callable(topics) else (lambda t: True) if topics is None else topics.__contains__
     gen = iter_messages(path)
     truncated = False
     while True:
@@ -156,7 +158,7 @@ def read(path: str | Path, topics: list[str] | None = None, keep_raw: bool = Fal
         counts[topic] += 1
         start = t if start is None else min(start, t)
         end = t if end is None else max(end, t)
-        if topics is None or topic in topics:
+        if wanted(topic):
             decoded[topic].append(_decode(path, topic, t, data))
             if keep_raw:
                 raw[topic].append(bytes(data))

@@ -283,17 +283,22 @@ def phase_windows(
     return out
 
 
+def replayed_topic(topic: str) -> bool:
+    """Whether the replay reads this topic of a log."""
+    return topic in TOPICS or topic.startswith(("/adas", "/experiment"))
+
+
 def render_phase_clip(log_path: str | Path, out: str | Path, systems=("A", "B"), seconds: float = 20.0,
                       params: RenderParams | None = None, **kwargs) -> dict:  # fmt: skip
     """One video of ``seconds`` from the middle of each system's phase of a run (e.g. an experiment
     participant's system A and system B), in that order; the HUD names the phase."""
     from cosim.log import read
 
-    state = read(log_path, topics=["/adas/state"]).topics.get("/adas/state", {})
-    spans = phase_windows(state, systems, seconds)
+    log = read(log_path, topics=replayed_topic)  # once: the windows come from its /adas/state
+    spans = phase_windows(log.topics.get("/adas/state", {}), systems, seconds)
     if not spans:
         raise CosimError(f"{log_path} has no /adas/state records with system {' or '.join(systems)} in use")
-    summary = render_log(log_path, out, None, params, windows=[(a, b) for _, a, b in spans], **kwargs)
+    summary = render_log(log_path, out, None, params, windows=[(a, b) for _, a, b in spans], log=log, **kwargs)
     summary["windows"] = [{"system": s, "start_s": round(a, 2), "end_s": round(b, 2)} for s, a, b in spans]
     return summary
 
@@ -340,11 +345,11 @@ class _Mp4Writer:
 
 def render_log(log_path: str | Path, out: str | Path | None = None, frames_dir: str | Path | None = None,
                params: RenderParams | None = None, *, scenario_dir=None, scene_params: SceneParams | None = None,
-               quiet: bool = True, windows: list[tuple[float, float]] | None = None) -> dict:  # fmt: skip
+               quiet: bool = True, windows: list[tuple[float, float]] | None = None, log=None) -> dict:  # fmt: skip
     """Render a logged run to an MP4 (``out``) and/or PNG stills (``frames_dir``); returns a summary.
 
     windows: (start, end) spans of simulated time [s] to show one after the other in one video (instead
-    of ``params.start_s`` .. ``params.end_s``).
+    of ``params.start_s`` .. ``params.end_s``); log: the file already read with ``replayed_topic``.
     """
     from PIL import Image
 
@@ -354,9 +359,8 @@ def render_log(log_path: str | Path, out: str | Path | None = None, frames_dir: 
     if out is None and frames_dir is None:
         raise CosimError("nothing to write: give an MP4 path and/or a frames directory")
     log_path = Path(log_path)
-    head = read(log_path, topics=[])
-    wanted = [t for t in head.counts if t in TOPICS or t.startswith("/adas") or t.startswith("/experiment")]
-    log = read(log_path, topics=wanted)
+    if log is None:
+        log = read(log_path, topics=replayed_topic)
     scenario, config = run_scenario(log.metadata, scenario_dir, quiet)
     t_build = time.perf_counter()
     sp = scene_params or SceneParams(max_width=max(p.width, 1280), max_height=max(p.height, 720))
