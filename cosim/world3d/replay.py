@@ -298,7 +298,9 @@ def render_phase_clip(log_path: str | Path, out: str | Path, systems=("A", "B"),
     spans = phase_windows(log.topics.get("/adas/state", {}), systems, seconds)
     if not spans:
         raise CosimError(f"{log_path} has no /adas/state records with system {' or '.join(systems)} in use")
-    summary = render_log(log_path, out, None, params, windows=[(a, b) for _, a, b in spans], log=log, **kwargs)
+    summary = render_log(
+        log_path, out, None, params, windows=[(a, b) for _, a, b in spans], log=log, **kwargs
+    )
     summary["windows"] = [{"system": s, "start_s": round(a, 2), "end_s": round(b, 2)} for s, a, b in spans]
     return summary
 
