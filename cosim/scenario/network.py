@@ -453,6 +453,20 @@ NOT_THROUGH_SERVICE = ("parking_aisle", "driveway", "drive-through", "parking")
 NO_CARS = "passenger private taxi bus coach delivery truck trailer motorcycle moped evehicle"
 
 
+# SUMO holds a connection's speed over its whole passage, so the paper's walking pace at a give-way line
+# (5 km/h) is also the speed across the junction: 7-12 s over an ordinary one (10-17 m). A roundabout entry
+# of a large joined junction is 30-40 m (Berlin's Grosser Stern): 25-30 s at 5 km/h, while the ego, which
+# looks and goes, passed the crawling lead on the next lane. Such a passage is crossed in this time instead.
+GIVE_WAY_PASSAGE_MAX_S = 12.0
+
+
+def give_way_passage_speed(conn, approach_mps: float) -> float:
+    """The speed of a give-way connection: the approach speed, or what crosses it in GIVE_WAY_PASSAGE_MAX_S
+    when it is longer (its length taken as the straight line from the lane's end to the next lane's start)."""
+    (x0, y0), (x1, y1) = conn.getFromLane().getShape()[-1][:2], conn.getToLane().getShape()[0][:2]
+    return max(approach_mps, math.hypot(x1 - x0, y1 - y0) / GIVE_WAY_PASSAGE_MAX_S)
+
+
 def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path):
     """Write node / edge / connection patch files for pass 2; returns them and the sign summary."""
     junction_kind: dict[str, str] = {}
@@ -491,10 +505,11 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
             for edge in _minor_incoming(node, signed):
                 for conns in edge.getOutgoing().values():
                     for c in conns:
+                        speed = give_way_passage_speed(c, behaviour.give_way_approach_speed_kmh / 3.6)
                         cons.append(
                             f"    <connection from={quoteattr(edge.getID())} to={quoteattr(c.getTo().getID())} "
                             f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}" '
-                            f'speed="{behaviour.give_way_approach_speed_kmh / 3.6:.3f}"/>'
+                            f'speed="{speed:.3f}"/>'
                         )
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getParams().get("turn:lanes"):

@@ -59,6 +59,30 @@ def test_give_way_on_the_junction_node_slows_minor_connections(tmp_path):
     assert checked >= 6  # straight, left and right (and turnarounds) from both minor approaches
 
 
+def test_a_wide_give_way_junction_is_crossed_within_the_passage_time(tmp_path):
+    """Across an eight-lane road the 5 km/h of the give-way line would take ~25 s (SUMO holds a connection's
+    speed over its whole passage); such passages are crossed in GIVE_WAY_PASSAGE_MAX_S; short ones (the right
+    turn) keep the walking pace of the paper."""
+    from cosim.scenario.network import GIVE_WAY_PASSAGE_MAX_S
+
+    sk = crossroads(minor="residential", major="primary", major_tags={"lanes": "8"},
+                    centre_tags={"highway": "give_way"})  # fmt: skip
+    _, net, _ = build(sk, tmp_path)
+    j = node_of(net, sk, "c")
+    walking = 5 / 3.6
+    speeds = {}
+    for edge in (e for e in j.getIncoming() if e.getType() == "highway.residential"):
+        for conns in edge.getOutgoing().values():
+            for c in conns:
+                (x0, y0), (x1, y1) = c.getFromLane().getShape()[-1][:2], c.getToLane().getShape()[0][:2]
+                chord = ((x1 - x0) ** 2 + (y1 - y0) ** 2) ** 0.5
+                speed = net.getLane(c.getViaLaneID()).getSpeed()
+                assert speed == pytest.approx(max(walking, chord / GIVE_WAY_PASSAGE_MAX_S), abs=0.05)
+                speeds[c.getDirection()] = max(speed, speeds.get(c.getDirection(), 0.0))
+    assert speeds["s"] > 2 * walking  # straight over ~30 m of junction: ~2.5 m/s, not 1.4
+    assert speeds["r"] == pytest.approx(walking, abs=0.01)  # an ordinary turn keeps the paper's pace
+
+
 @pytest.mark.parametrize("direction", ["forward", "backward"])
 def test_give_way_on_an_approach_node_with_direction(tmp_path, direction):
     """Two equal residential roads (right-before-left by default); a give-way sign 30 m south of the
