@@ -230,6 +230,12 @@ class RoutePath:
                 return eid, lane
         return None
 
+    def edges_between(self, s_from: float, s_to: float) -> set[str]:
+        """The ids of the edges the path is on between two arc positions, junctions' internal edges included."""
+        spans = [(a, b, eid) for a, b, eid, _ in self.edge_lanes]
+        spans += [(a, b, lane.rpartition("_")[0]) for a, b, lane in self.via_lanes]
+        return {eid for a, b, eid in spans if a <= s_to and b >= s_from}
+
     def edge_index(self, s: float) -> int:
         """Index in the route of the edge at arc position ``s`` (the edge just left while in a junction)."""
         return max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)

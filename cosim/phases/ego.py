@@ -55,6 +55,9 @@ FREE_MAPPING_M = 100.0
 NEXT_LEADERS_SEEN = 3  # vehicles on the path the percept keeps, nearest first: the leader and those beyond it
 LEAD_BESIDE_M = 5.0  # the lead's rear this close to the path's centre line is ahead of the ego, in its lane or the next [m]
 LEAD_AT_ROADSIDE_M = 12.0  # ... and standing at the roadside, beside up to three lanes [m]
+# ... and on a SUMO edge the path takes there, in any lane: the lanes of a wide junction's passage fan out
+# (Berlin's Grosser Stern: two lanes of one roundabout entry 6.5 m apart), and the ego passed the lead there [m]
+LEAD_SAME_EDGE_M = 12.0
 ROADSIDE_KEEP_BACK_M = 6.0  # the participant stops this much farther back from the lead at the roadside [m]
 PATH_HALF_WIDTH_M = (
     1.0  # a vehicle whose rear is this close to the path's centre line (+ half its width) is ahead
@@ -449,7 +452,8 @@ class EgoController:
         blocked from changing into the ego's lane, was passed by the ego closing up in that lane; it was
         the ego's leader 3 % of the run). At the roadside, letting cars pass, SUMO shows it beside the road's
         rightmost lane (6.4 m off a two-lane road's left lane): the participant stops behind it, whichever
-        lane they are in, and lets it back in."""
+        lane they are in, and lets it back in. Farther off, up to LEAD_SAME_EDGE_M, the lead is still ahead
+        when SUMO has it on an edge the path takes there (another lane of a wide junction's passage)."""
         slot = w.slot_of.get(LEAD_ID)
         if slot is None:
             return {}
@@ -462,7 +466,15 @@ class EgoController:
             LEAD_AT_ROADSIDE_M if self.lead_at_roadside else LEAD_BESIDE_M,
         )  # fmt: skip
         if rows.size == 0:
-            return {}
+            rows, s_rear = self.path.vehicles_on_path(
+                rear_x, rear_y, s_front, s_front + PREVIEW_AHEAD_M, LEAD_SAME_EDGE_M
+            )
+            code = int(w.edge_code[slot])
+            if not rows.size or code < 0:
+                return {}
+            s = float(s_rear[0])  # a point off to the side projects up to a lane width along from its place
+            if w.edge_names[code] not in self.path.edges_between(s - LEAD_SAME_EDGE_M, s + LEAD_SAME_EDGE_M):
+                return {}
         gap = float(s_rear[0]) - s_front
         if self.lead_at_roadside:  # stop short of it: room for it to pull out in front (SUMO needs that)
             gap = max(0.0, gap - ROADSIDE_KEEP_BACK_M)
