@@ -114,6 +114,10 @@ LET_PAST_AFTER_S = 3.0
 LET_PAST_STANDING_AFTER_S = 2.0
 PULL_OVER_SPARE_M = 5.0  # the lead stands at the roadside this far beyond its braking distance [m]
 PULL_OVER_CLEAR_M = 15.0  # ... and at least this far short of the lane's end: not at a junction's line [m]
+# ... on a road of at most this many lanes: the participant stops behind the lead at the roadside beside up to
+# three lanes (ego.LEAD_AT_ROADSIDE_M); beside Berlin's six-lane Grosser Stern it stood 19 m off the ego's lane,
+# the ego drove past, and the lead stood 58 s
+PULL_OVER_MAX_LANES = 3
 # the lead gets back in only with the ego standing or this far back: a headway [s], a comfortable stop [m/s^2]
 # and room to spare [m] (SUMO re-inserts it only where the car behind can stop)
 REJOIN_HEADWAY_S = 1.0
@@ -153,7 +157,9 @@ class LeadBridge(FoesBridge, Protocol):
 
     def follower_beside(self, vid: str, left: bool) -> tuple[str, float, float] | None: ...
 
-    def pull_over(self, vid: str, ahead_m: float, clear_of_end_m: float) -> str | None: ...
+    def pull_over(
+        self, vid: str, ahead_m: float, clear_of_end_m: float, max_lanes: int | None = None
+    ) -> str | None: ...
 
     def parked(self, vid: str) -> bool: ...
 
@@ -539,8 +545,8 @@ class LeadVehicle:
             return False
         v = float(w.speed_mps[lead])
         lane = self.bridge.pull_over(LEAD_ID, v * v / (2.0 * STOP_DECEL_MPS2) + PULL_OVER_SPARE_M,
-                                     PULL_OVER_CLEAR_M)  # fmt: skip
-        if lane is None:  # in a junction or near the end of its lane: again on the next step
+                                     PULL_OVER_CLEAR_M, PULL_OVER_MAX_LANES)  # fmt: skip
+        if lane is None:  # in a junction, near the end of its lane, on a wide road: again on the next step
             return False
         if self._capped:  # a lingering cap would hold it short of its stop
             self.bridge.cap_speed(LEAD_ID, None)

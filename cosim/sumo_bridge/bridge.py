@@ -743,12 +743,15 @@ class SumoBridge:
             veh.setLaneChangeMode(vid, self._lc_mode_before.pop(vid))
         veh.changeLane(vid, lane_index, duration_s)
 
-    def pull_over(self, vid: str, ahead_m: float, clear_of_end_m: float) -> str | None:
+    def pull_over(
+        self, vid: str, ahead_m: float, clear_of_end_m: float, max_lanes: int | None = None
+    ) -> str | None:
         """Park ``vid`` at the roadside at least ``ahead_m`` ahead: an on-road parking stop, which takes it off
         the lane once it stands there, so the cars behind it drive past. The spot is on its lane, or when
         that ends too soon, early on the next edge of its route (its rightmost lane for cars); never within
-        ``clear_of_end_m`` of a lane's end (a junction's line). Returns the lane, or None in a junction, when
-        neither has room or SUMO refuses. It stays there until ``rejoin``."""
+        ``clear_of_end_m`` of a lane's end (a junction's line), nor on an edge of more than ``max_lanes``
+        lanes. Returns the lane, or None in a junction, when neither has room or SUMO refuses. It stays there
+        until ``rejoin``."""
         veh, lane_api = self._sumo.vehicle, self._sumo.lane
         lane = veh.getLaneID(vid)
         if not lane or lane.startswith(":"):
@@ -766,6 +769,8 @@ class SumoBridge:
             if pos > lane_api.getLength(lane) - clear_of_end_m:
                 return None
         edge, _, index = lane.rpartition("_")
+        if max_lanes is not None and self._sumo.edge.getLaneNumber(edge) > max_lanes:
+            return None
         try:
             veh.setStop(
                 vid, edge, pos=pos, laneIndex=int(index), duration=PARKED_FOR_GOOD_S, flags=STOP_PARKING

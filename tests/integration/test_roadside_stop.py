@@ -14,7 +14,9 @@ def test_a_car_behind_drives_past_the_lead_at_the_roadside_and_the_lead_gets_bac
     from cosim.world import World
 
     net = plain_net(
-        tmp_path, {"A": (0, 0), "B": (500, 0), "C": (1000, 0)}, {"AB": ("A", "B", 1), "BC": ("B", "C", 1)}
+        tmp_path,
+        {"A": (0, 0), "B": (500, 0), "C": (1000, 0), "D": (1500, 0)},
+        {"AB": ("A", "B", 1), "BC": ("B", "C", 1), "CD": ("C", "D", 1, 4)},
     )
     (tmp_path / "signs.add.xml").write_text("<additional/>")
     cfg = tmp_path / "s.sumocfg"
@@ -59,6 +61,11 @@ def test_a_car_behind_drives_past_the_lead_at_the_roadside_and_the_lead_gets_bac
         bridge.step(w)
         assert bridge.pull_over("late", ahead_m=20.0, clear_of_end_m=15.0) == "BC_0"
         assert bridge.pull_over("last", ahead_m=20.0, clear_of_end_m=15.0) is None  # its route ends there
+        sumo.route.add("r_wide", ["CD"])
+        sumo.vehicle.add("wide", "r_wide", depart="now", departPos="100", departSpeed="0")
+        bridge.step(w)  # on four lanes: no roadside stop where the cars behind would pass it far off
+        assert bridge.pull_over("wide", ahead_m=20.0, clear_of_end_m=15.0, max_lanes=3) is None
+        assert bridge.pull_over("wide", ahead_m=20.0, clear_of_end_m=15.0, max_lanes=4) == "CD_0"
         while not bridge.parked("late") and w.t_s < 120.0:
             bridge.step(w)
         assert bridge.parked("late") and sumo.vehicle.getRoadID("late") == "BC"

@@ -97,7 +97,7 @@ class FakeBridge:
     def leader_beside(self, vid, left):
         return self.ahead_beside
 
-    def pull_over(self, vid, ahead_m, clear_of_end_m):
+    def pull_over(self, vid, ahead_m, clear_of_end_m, max_lanes=None):
         assert vid == LEAD_ID
         if self.roadside is not None:
             self.pulled_over.append(ahead_m)
