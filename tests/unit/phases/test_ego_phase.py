@@ -758,6 +758,33 @@ def test_the_participant_stops_behind_the_lead_standing_at_the_roadside_two_lane
         assert front > 100.0
 
 
+def _path_with_edges(edges, delays) -> RoutePath:
+    """The plain fake path, with the edges it takes recorded (a junction's internal edge :J_1 from 190 m)."""
+    spans = [(0.0, 190.0, "a", 0), (200.0, 400.0, "b", 0), (400.0, 600.0, "c", 0)]
+    return RoutePath([(0.0, 0.0), (0.0, 3 * EDGE_M)], (), [(k * EDGE_M, 13.89) for k in range(3)],
+                     edge_lanes=spans, via_lanes=[(190.0, 200.0, ":J_1_0")])  # fmt: skip
+
+
+@pytest.mark.parametrize("edge, ahead", [(":J_1", True), ("b", True), ("x", False)])
+def test_the_lead_two_lanes_over_on_the_edge_the_path_takes_is_the_participants_leader(edge, ahead):
+    """Berlin's Grosser Stern: two lanes of one roundabout entry fan out to 6.5 m apart, and the ego, in the
+    one the path takes, drove past the lead in the other. The lead that far off (7.5 m) is ahead when SUMO
+    has it on an edge the path takes there, the junction's passage or the road after it; on another road
+    (a parallel street, ``x``) it is not."""
+    d = Drive()
+    d.place(170.0)
+    d.ego._path_of = _path_with_edges
+    d.ego.path = _path_with_edges(d.route, {})
+    car = _standing_one_lane_over(d, "lead", 200.0)
+    d.world.x_m[car], d.world.edge_code[car] = 7.5, d.world.intern_edge(edge)
+    d.step()
+    p = d.ego.percept
+    if ahead:
+        assert p.leader_id == "lead" and p.leader_gap_m == pytest.approx(200.0 - 4.5 - 170.0, abs=1.0)
+    else:
+        assert p.leader_id is None
+
+
 def test_the_participant_stops_for_a_car_merging_in_at_a_shallow_angle_before_its_rear_is_in_the_way():
     """Monaco 25177449 (experiment P2): scv662 crawled into the ego's way 2.5 m ahead of it at a shallow
     angle, its rear still off the path and too shallow to cross it; the ego, seeing neither a leader nor a
