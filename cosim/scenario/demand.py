@@ -25,6 +25,7 @@ from __future__ import annotations
 import itertools
 import math
 import zlib
+from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -223,6 +224,48 @@ class RouteChainer:
         ]
         streets = [e.getID() for e in through if is_spawn_edge(e)]
         self.dest_ids = streets or [e.getID() for e in through] or sorted(ends)
+        self.endless = {b for _, b in self._endless_pairs(comp)}  # where a leg may end
+
+    def _endless_pairs(self, comp: list) -> set[tuple[str, str]]:
+        """The turns (a, b) from which a route can go on for ever without turning back (it reaches a loop of
+        the network): a leg may end on b. A leg that ends anywhere else strands the route in a dead-end part
+        of the map, a tree of streets whose every way out turns round (Krems: 23 of 639 destinations;
+        graphhopper's Laufamholzstrasse extract: the ego stood 233 s at its route's end). Worked out on the
+        turns a route may make: pairs (a, b) of consecutive edges without a hairpin, (a, b) -> (b, c) unless
+        b is a short edge (``HAIRPIN_WITHIN_M``) and the two turns add up to more than ``HAIRPIN_DEG`` (the
+        commonest case of ``turns_back``); pairs with no way on are dropped again and again. Empty when the
+        map has no such loop at all (one junction cut out of a town, a motorway interchange, or a 1.5-km
+        extract whose only loops are junction triangles of 28-66-m edges: CommonRoad's
+        map_without_crossing_nodes.osm)."""
+        ids = set(self.length)
+        into: dict[str, list[str]] = defaultdict(list)  # edge -> the edges a route may come from
+        for e in comp:
+            a = e.getID()
+            for o in e.getOutgoing():
+                if o.getID() in ids and not self.hairpin(a, o.getID()):
+                    into[o.getID()].append(a)
+
+        def goes_on(a: str, b: str, c: str) -> bool:
+            return self.length[b] > HAIRPIN_WITHIN_M or abs(self.turn(a, b) + self.turn(b, c)) <= HAIRPIN_DEG
+
+        out_of: dict[str, list[str]] = defaultdict(list)
+        for b, froms in into.items():
+            for a in froms:
+                out_of[a].append(b)
+        ways_on = {
+            (a, b): sum(goes_on(a, b, c) for c in out_of[b]) for b, froms in into.items() for a in froms
+        }
+        dropped = [p for p, n in ways_on.items() if n == 0]
+        gone = set(dropped)
+        while dropped:
+            b, c = dropped.pop()
+            for a in into[b]:  # (a, b) loses the way on through (b, c)
+                if (a, b) not in gone and goes_on(a, b, c):
+                    ways_on[a, b] -= 1
+                    if ways_on[a, b] == 0:
+                        gone.add((a, b))
+                        dropped.append((a, b))
+        return ways_on.keys() - gone
 
     def turn(self, a: str, b: str) -> float:
         """Signed turn from edge ``a`` onto edge ``b`` [deg], left positive."""
@@ -256,6 +299,10 @@ class RouteChainer:
         (a loop round a block or through a parking lot to turn round) is taken only when the batch has no
         other."""
         dests = [self.dest_ids[int(i)] for i in rng.integers(0, len(self.dest_ids), self.BATCH)]
+        if self.endless:  # drawn as before, so that routes which never entered a dead-end part stay the same
+            dests = [d for d in dests if d in self.endless]
+            if not dests:
+                return 0.0
         legs = legs_for([(route[-1], d) for d in dests])
         good = [
             leg

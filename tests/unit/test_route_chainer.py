@@ -52,3 +52,34 @@ def test_one_sharp_turn_is_a_hairpin_and_a_block_round_or_an_s_bend_is_not():
     assert c.turns_back(["in", "back"])
     assert not c.turns_back(["in", "left", "west"])  # 180 deg in all, but 100 m apart: round a block
     assert not c.turns_back(["in", "jog", "east"])  # +90 then -90 within 5 m
+
+
+class LinkedEdge(StraightEdge):
+    """A StraightEdge with the edges it leads to."""
+
+    def __init__(self, eid: str, heading_deg: float, length_m: float):
+        super().__init__(eid, heading_deg, length_m)
+        self.outs: list[LinkedEdge] = []
+
+    def getOutgoing(self):  # noqa: N802
+        return {o: [] for o in self.outs}
+
+    def getType(self):  # noqa: N802
+        return "highway.residential"
+
+
+def test_endless_edges_are_those_a_route_can_leave_for_ever_without_turning_back():
+    """A block of four 100-m edges (left turns all round) and a spur off it, a dead end whose only way on is
+    the U-turn into the road back: a leg that ends on the spur strands the route there (graphhopper's
+    Laufamholzstrasse extract: the ego stood 233 s at its route's end); the road back is reached only by
+    that U-turn."""
+    e = {k: LinkedEdge(k, h, 100.0) for k, h in
+         (("s1", 0.0), ("s2", 90.0), ("s3", 180.0), ("s4", 270.0), ("spur", 270.0), ("back", 90.0))}  # fmt: skip
+    for a, bs in {"s1": ["s2", "spur"], "s2": ["s3"], "s3": ["s4"], "s4": ["s1"], "spur": ["back"],
+                  "back": ["s2"]}.items():  # fmt: skip
+        e[a].outs = [e[b] for b in bs]
+    c = RouteChainer(list(e.values()))
+    assert c.hairpin("spur", "back")
+    assert c.endless == {"s1", "s2", "s3", "s4"}
+    e["s4"].outs = []  # no block: every way turns round or ends
+    assert RouteChainer(list(e.values())).endless == set()
