@@ -254,7 +254,7 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
                 "demand": {
                     **dataclasses.asdict(d),
                     "density": demand.density,
-                    "area": demand.area,
+                    "area": d.area,
                     "radius_m": demand.radius_m if demand.area == "around_ego" else None,
                     "horizon_s": demand.horizon_s,
                     "seed": seed,
@@ -311,9 +311,13 @@ def _traffic_line(d: dict) -> str:
             f"  traffic: generated around the ego at run time, {d['target_per_lane_km']} veh/lane-km "
             f"'{d['density']}' within {d['radius_m']:g} m, from a pool of {d['route_pool']} routes; {routes}"
         )
+    where = ""
+    if d.get("area") == "ego_route":
+        where = (f" along the ego's route ({d['area_lane_km']} lane-km; `scenario.demand.area: network` fills the "
+                 "whole map)")  # fmt: skip
     return (
         f"  traffic: {d['vehicles']} vehicles ({d['initial_vehicles']} at start, {d['arrival_rate_per_h']:.0f}/h), "
-        f"{d['target_per_lane_km']} veh/lane-km '{d['density']}', {routes}"
+        f"{d['target_per_lane_km']} veh/lane-km '{d['density']}'{where}, {routes}"
     )
 
 

@@ -53,12 +53,20 @@ MEAN_SPEED_FRACTION = (
 )
 
 
+# drivable lane-km beyond which area "auto" keeps the traffic along the ego's route: a town (Krems 157, Monaco
+# 95) is filled whole; filling a city of thousands of lane-km (graphhopper's Campo Grande extract: 23,000
+# edges, ~100,000 trips to route) took the build over 40 minutes and a run thousands of stations
+LARGE_NETWORK_LANE_KM = 400.0
+
+
 @dataclass(frozen=True)
 class DemandParams:
     density: str = "medium"  # a preset name, see DENSITY_PRESETS
     vehicles_per_lane_km: float | None = None  # overrides the preset when given
     horizon_s: float = 3600.0  # vehicles keep arriving until this time [s]
-    area: Literal["network", "ego_route", "around_ego"] = "network"  # where SCVs start and end
+    # where SCVs start and end: "auto" is the whole network up to LARGE_NETWORK_LANE_KM, beyond that (a city)
+    # the corridor along the ego's route ("ego_route")
+    area: Literal["auto", "network", "ego_route", "around_ego"] = "auto"
     corridor_m: float = 300.0  # with area: ego_route, the half-width of the corridor [m]
     radius_m: float = 500.0  # with area: around_ego, traffic is kept within this distance of the ego [m]
     spawn_min_m: float = 200.0  # with area: around_ego, new SCVs start at least this far from the ego [m]
@@ -112,6 +120,11 @@ def drivable_component(net) -> list:
 
 def _lanes_for_cars(edge) -> int:
     return sum(1 for lane in edge.getLanes() if lane.allows("passenger"))
+
+
+def _lane_km(edges) -> float:
+    """Lane-km open to cars of ``edges``."""
+    return sum(e.getLength() * _lanes_for_cars(e) for e in edges) / 1000.0
 
 
 def is_spawn_edge(edge) -> bool:
@@ -383,6 +396,7 @@ class Demand:
     ego_route_length_m: float
     area_lane_km: float
     route_pool: int = 0  # area: around_ego: routes the run-time generator picks from
+    area: str = "network"  # where the traffic was placed (what "auto" became)
 
 
 POOL_ROUTES_PER_ORIGIN = 4
@@ -419,11 +433,14 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
                                  params.ego_route_length_m, table, net_file, workdir)  # fmt: skip
     if params.area == "around_ego":
         return _write_pool_demand(net, comp, ego_route, params, behaviour, rng, table, net_file, out, workdir)
-    if params.area == "ego_route":
+    area = params.area
+    if area == "auto":
+        area = "network" if _lane_km(comp) <= LARGE_NETWORK_LANE_KM else "ego_route"
+    if area == "ego_route":
         comp = corridor_edges(comp, ego_route, params.corridor_m)
     orig_ids, w_orig = trip_ends(comp)
     dest_ids = orig_ids
-    lane_km = sum(e.getLength() * _lanes_for_cars(e) for e in comp) / 1000.0
+    lane_km = _lane_km(comp)
     n_target = max(1, round(params.per_lane_km * lane_km))
     speed = {e.getID(): e.getSpeed() for e in full}  # routes may leave the corridor
     length = {e.getID(): e.getLength() for e in full}
@@ -477,7 +494,8 @@ def build_demand(net, net_file: Path, params: DemandParams, behaviour: ScvBehavi
     lines.append("</routes>")
     out.write_text("\n".join(lines) + "\n")
     return Demand(n, len(initial), lane_km, params.per_lane_km, rate * 3600.0, mean_trip, dropped,
-                  table.hits, table.computed, ego_route, _route_length(net, ego_route), round(lane_km, 2))  # fmt: skip
+                  table.hits, table.computed, ego_route, _route_length(net, ego_route), round(lane_km, 2),
+                  area=area)  # fmt: skip
 
 
 def _routes_head(behaviour: ScvBehaviour, rng: np.random.Generator, ego_route: list[str]) -> list[str]:
@@ -501,6 +519,6 @@ def _write_pool_demand(net, comp: list, ego_route: list[str], params: DemandPara
     lines += [f'    <route id="{POOL_ROUTE_PREFIX}{i}" edges="{" ".join(r)}"/>' for i, r in enumerate(pool)]
     lines.append("</routes>")
     out.write_text("\n".join(lines) + "\n")
-    lane_km = sum(e.getLength() * _lanes_for_cars(e) for e in comp) / 1000.0
+    lane_km = _lane_km(comp)
     return Demand(0, 0, round(lane_km, 2), params.per_lane_km, 0.0, 0.0, 0, table.hits, table.computed,
-                  ego_route, _route_length(net, ego_route), round(lane_km, 2), len(pool))  # fmt: skip
+                  ego_route, _route_length(net, ego_route), round(lane_km, 2), len(pool), "around_ego")  # fmt: skip
