@@ -254,7 +254,6 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
                 "demand": {
                     **dataclasses.asdict(d),
                     "density": demand.density,
-                    "area": d.area,
                     "radius_m": demand.radius_m if demand.area == "around_ego" else None,
                     "horizon_s": demand.horizon_s,
                     "seed": seed,

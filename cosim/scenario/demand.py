@@ -54,8 +54,8 @@ MEAN_SPEED_FRACTION = (
 
 
 # drivable lane-km beyond which area "auto" keeps the traffic along the ego's route: a town (Krems 157, Monaco
-# 95) is filled whole; filling a city of thousands of lane-km (graphhopper's Campo Grande extract: 23,000
-# edges, ~100,000 trips to route) took the build over 40 minutes and a run thousands of stations
+# 95) is filled whole; filling a city of thousands of lane-km (graphhopper's Campo Grande extract: 2,400
+# lane-km, ~100,000 trips to route) took the build over 40 minutes, and a run would carry ~12,000 stations
 LARGE_NETWORK_LANE_KM = 400.0
 
 
