@@ -21,13 +21,15 @@ ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.own_process
 
 
+# seed 5: its route passes Krems cluster_206089614_71582005 twice, where SUMO's free mapping once took the
+# twin off the route (7935bc4); seed 8: its route changes lanes ~67 s in, which the pose check needs (seed 5's
+# did too until its legs were held to destinations with a way on, 4eceb41)
 @pytest.mark.slow
-def test_scripted_driver_300s_on_the_default_map(tmp_path):
+@pytest.mark.parametrize("seed, changes_lanes", [(5, False), (8, True)])
+def test_scripted_driver_300s_on_the_default_map(tmp_path, seed, changes_lanes):
     """No collision, never off the road, no red-light violation, lane keeping within 0.3 m on average; SUMO
     keeps the ego's planned route (its lights, right of way and foes depend on it)."""
-    # seed 5: its route changes lanes 251 m in (the pose check below needs one; seed 8's first is 5.8 km in
-    # since parking aisles are closed to cars and its route changed, 266477f)
-    cfg = load_run_config(ROOT / "configs" / "default.yaml", **{"duration_s": 300, "seed": 5,
+    cfg = load_run_config(ROOT / "configs" / "default.yaml", **{"duration_s": 300, "seed": seed,
                                                                 "scenario.demand.density": "low"})  # fmt: skip
     foreign_route_steps = []
 
@@ -54,7 +56,10 @@ def test_scripted_driver_300s_on_the_default_map(tmp_path):
     # the logged pose is the car's, which moves continuously: no step longer than the speed allows. SUMO's
     # twin, logged before, was snapped onto the new lane as a change began: 2.5 m sideways in one step here
     x, y, v = (e[k].astype(float) for k in ("x_m", "y_m", "speed_mps"))
-    assert (np.diff(e["lane_index"].astype(int)) != 0).any(), "no lane change: the check below tests nothing"
+    if changes_lanes:
+        assert (np.diff(e["lane_index"].astype(int)) != 0).any(), (
+            "no lane change: the check below tests nothing"
+        )
     excess = np.hypot(np.diff(x), np.diff(y)) - np.maximum(v[:-1], v[1:]) * cfg.timing.sumo_step_s
     assert excess.max() < 0.3, f"the ego's pose jumps {excess.max():.2f} m beyond its speed in one step"
     # it really drove: 969 m with one green per signalised approach (e753290), 1.0+ km before; the issue-15
