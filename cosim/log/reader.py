@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import struct
 from collections import defaultdict
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -132,7 +133,9 @@ def _columns(messages: list[dict]) -> dict[str, np.ndarray]:
 _NUMERIC_TYPES = {int, float, type(None)}
 
 
-def read(path: str | Path, topics=None, keep_raw: bool = False) -> Log:
+def read(
+    path: str | Path, topics: Collection[str] | Callable[[str], bool] | None = None, keep_raw: bool = False
+) -> Log:
     """Per-topic columns of a cosim MCAP log; ``topics`` (a collection of names, or a predicate on a name)
     limits what is decoded."""
     path = Path(path)

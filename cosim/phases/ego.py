@@ -466,6 +466,8 @@ class EgoController:
             LEAD_AT_ROADSIDE_M if self.lead_at_roadside else LEAD_BESIDE_M,
         )  # fmt: skip
         if rows.size == 0:
+            if self.lead_at_roadside:  # searched as wide already
+                return {}
             rows, s_rear = self.path.vehicles_on_path(
                 rear_x, rear_y, s_front, s_front + PREVIEW_AHEAD_M, LEAD_SAME_EDGE_M
             )
