@@ -12,9 +12,9 @@ Helsinki), among them the junctions where the collisions of plain SUMO runs happ
 the ends of the lanes they join, where a car's body still is) come closer than a car's width plus a margin
 without a foe relation, and returns a netconvert ``<prohibition>`` for it: the lower-ranked movement
 yields to the higher-ranked one (major before minor, straight before right before left before U-turn).
-``turnaround_deletions`` removes U-turns at junctions that are not dead ends (netconvert's turnarounds, and
-turns onto another road that reverse the heading within a car's length): on a two-lane street a car cannot
-turn on the spot, and SUMO's turnaround lane sweeps across the movements of the whole junction.
+``turnaround_deletions`` removes U-turns at junctions that are not dead ends (netconvert's turnarounds, turns
+onto another road that reverse the heading within a car's length, and turns back to the junction just left
+within a car's turning half circle): on a two-lane street a car cannot turn on the spot, and SUMO's turnaround lane sweeps across the movements of the whole junction.
 ``sibling_change_bars`` bars lane changes inside a junction into a lane that another movement of the same
 incoming lane runs beside (SUMO's lane changer does not see that one). ``separated_shapes`` gives custom
 internal-lane shapes to movements that run side by side closer than two car widths without crossing: SUMO
@@ -203,12 +203,47 @@ def _is_u_turn(conn) -> bool:
         return True
     if _osm_way(conn.getFrom().getID()) == _osm_way(conn.getTo().getID()):
         return False  # the road's own way on (a hairpin OSM draws with few nodes): cars drive it
+    if _short_loop(conn.getFrom(), conn.getTo()):
+        return True
     a, b = conn.getFromLane().getShape(), conn.getToLane().getShape()
     if len(a) < 2 or len(b) < 2 or math.dist(a[-1], b[0]) >= CAR_LENGTH_M:
         return False
-    heading_in = math.atan2(a[-1][1] - a[-2][1], a[-1][0] - a[-2][0])
-    heading_out = math.atan2(b[1][1] - b[0][1], b[1][0] - b[0][0])
-    return abs(math.degrees((heading_out - heading_in + math.pi) % (2 * math.pi) - math.pi)) > U_TURN_DEG
+    return _heading_change_deg(a, b) > U_TURN_DEG
+
+
+# AASHTO's passenger-car design vehicle turning round on its 7.3-m minimum radius drives a half circle of
+# pi * 7.3 m (A Policy on Geometric Design, 2011, Table 2-2b); a way back to the junction just left that is
+# shorter than this is a U-turn too
+U_TURN_LOOP_M = math.pi * 7.3
+
+
+def _short_loop(edge, to_edge) -> bool:
+    """Whether turning from ``edge`` into ``to_edge`` leads back to the junction ``edge`` left within
+    U_TURN_LOOP_M of road, and every way on through that loop either turns round or is a movement the
+    junction has directly. Krems 83637441 before its two lights 0.2 m apart were joined (network.py,
+    light_joins): SCVs that A* sent back up Hafenstrasse turned round through both links, and one
+    stood at the red crosswise over the next lane, where a car going straight on hit it. Junctions that
+    stay apart form the same loop: Krems 25096356#1 -> 59606607 -> 25096356#1, 11.7 m."""
+    start = edge.getFromNode()
+    if not (to_edge.getToNode() is start and edge.getToNode() is not start
+            and edge.getLength() + to_edge.getLength() < U_TURN_LOOP_M):  # fmt: skip
+        return False
+    return all(
+        on is edge or on in into.getOutgoing() or _reverses(into, on)
+        for into in edge.getIncoming()
+        for on in to_edge.getOutgoing()
+    )
+
+
+def _heading_change_deg(a_shape, b_shape) -> float:
+    """The change of heading from the end of polyline ``a_shape`` to the start of ``b_shape`` [deg]."""
+    heading_in = math.atan2(a_shape[-1][1] - a_shape[-2][1], a_shape[-1][0] - a_shape[-2][0])
+    heading_out = math.atan2(b_shape[1][1] - b_shape[0][1], b_shape[1][0] - b_shape[0][0])
+    return abs(math.degrees((heading_out - heading_in + math.pi) % (2 * math.pi) - math.pi))
+
+
+def _reverses(edge, to_edge) -> bool:
+    return _heading_change_deg(edge.getLane(0).getShape(), to_edge.getLane(0).getShape()) > U_TURN_DEG
 
 
 def _osm_way(edge_id: str) -> str:

@@ -609,6 +609,34 @@ def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Pat
             "stop_lines_moved_back": len(ends)}  # fmt: skip
 
 
+# netconvert's junction join (--junctions.join) leaves a signalised crossing as two lights when joining would
+# give it two parallel incoming roads ("Reducing junction cluster ... (parallel incoming ...)"): Krems 83637441
+# and the light beside it, 0.2 m apart. Cars in one junction wait for room in the other, and in `make
+# experiment` the crossing locked up with four cars (and the lead) inside. Lights this close are one.
+LIGHT_LINK_MAX_M = 1.0
+
+
+def light_joins(net) -> list[list[str]]:
+    """Groups of traffic-light junctions joined by a car road shorter than LIGHT_LINK_MAX_M, to join."""
+    parent: dict[str, str] = {}
+
+    def root(n: str) -> str:
+        while parent.get(n, n) != n:
+            n = parent[n]
+        return n
+
+    for e in sorted(net.getEdges(), key=lambda e: e.getID()):
+        a, b = e.getFromNode(), e.getToNode()
+        if (e.allows("passenger") and e.getLength() < LIGHT_LINK_MAX_M and a is not b
+                and a.getType() == b.getType() == "traffic_light"):  # fmt: skip
+            ra, rb = root(a.getID()), root(b.getID())
+            parent.update({ra: ra, rb: rb, max(ra, rb): min(ra, rb)})
+    groups: dict[str, list[str]] = {}
+    for n in sorted(parent):
+        groups.setdefault(root(n), []).append(n)
+    return list(groups.values())
+
+
 def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
     if run.returncode != 0:
         first = run.errors[0] if run.errors else run.log.strip().splitlines()[-1:] or ["unknown error"]
@@ -624,6 +652,23 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     net1 = read_network(pass1, programs=True)
     if not [e for e in net1.getEdges() if e.allows("passenger")]:
         raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
+    joins = light_joins(net1)
+    if joins:
+        join_file = workdir / "join.nod.xml"
+        join_file.write_text(
+            "<nodes>\n" + "".join(f'    <join nodes="{" ".join(g)}"/>\n' for g in joins) + "</nodes>\n"
+        )
+        joined = workdir / "joined.net.xml"
+        run_j = run_tool("netconvert", ["--sumo-net-file", str(pass1), "--node-files", str(join_file),
+                                        "--tls.default-type", TLS_TYPE, "--tls.layout", "opposites",
+                                        *COMMON_OPTIONS, "--offset.disable-normalization", "true",
+                                        "--output-file", str(joined)])  # fmt: skip
+        with (workdir / "netconvert.log").open("a") as fh:
+            fh.write("\n--- pass 1b (one crossing, one junction) ---\n" + run_j.log)
+        _check("netconvert (junction joins)", run_j, osm.path)
+        os.replace(joined, pass1)
+        join_file.unlink()
+        net1 = read_network(pass1, programs=True)
     placements = place_signs(net1, osm)
     files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
     fix_log = workdir / "junction_fixes.txt"

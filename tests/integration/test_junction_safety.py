@@ -99,17 +99,22 @@ def test_600s_of_plain_sumo_on_shipped_map(scenarios, name):
 
     Measured (medium, seeds 1-3, 600 s, tau 2 s): Munich 0/0/0 collisions, 0.2-1.5 % teleported; Krems
     4/2/8 -> 0/0/1 collisions (non-crossing movements pushed apart, no ignore-junction-blocker, impatience
-    after 60 s), but 1.6-2.5 % teleported (queues at stop and minor approaches that cannot take the flow):
-    xfail there, with a hard bound on the teleport share of the tested seed so that the jams do not grow.
+    after 60 s), but 1.6-2.5 % teleported (queues at stop and minor approaches that cannot take the flow).
     With trips from street to street and stop lines moved back behind turns (session 22): Krems 0
     collisions, 1.06 % teleported (18 of 1694) on the tested seed. With no turning round in short stubs and
-    parking aisles closed to cars (266477f): Krems 0 collisions, 0.65 % (10 of 1538), so no longer xfail;
-    Munich 0 / 0 % (344 departed).
+    parking aisles closed to cars (266477f): Krems 0 collisions, 0.65 % (10 of 1538); Munich 0 / 0 %.
+
+    One SUMO seed is a lottery (any change of the network reshuffles the routes), so three are run. Krems,
+    SUMO seeds 1-10 (the scenario's own, then 2-10): 2 collisions, both inside the crossing of 83637441 and
+    the light 0.2 m beside it, and 4-29 teleports (up to 1.9 %); with that crossing one junction and no
+    turning round through short loops (session 28): 0 collisions, 9-13 teleports (0.6-0.85 %).
     """
-    result = check_scenario(scenarios[name].dir, 600.0)
-    assert result["departed"] > 300, result
-    assert result["collisions"] == 0, result["collision_list"][:5]
-    assert result["teleport_share"] <= 0.01, result
+    scn = scenarios[name]
+    results = [check_scenario(scn.dir, 600.0, seed=seed, record=False) for seed in (None, 2, 3)]
+    for result in results:
+        assert result["departed"] > 300, result
+        assert result["teleport_share"] <= 0.01, result
+        assert result["collisions"] == 0, result["collision_list"][:5]
 
 
 def test_scvs_reroute_and_the_ego_type_does_not():
@@ -140,6 +145,32 @@ def test_a_turn_that_doubles_back_within_a_car_length_is_a_u_turn(tmp_path):
     deleted = turnaround_deletions(net)
     assert [line for line in deleted if 'from="SC" to="CX"' in line], deleted
     assert not [line for line in deleted if 'to="CX"' in line and 'from="SC"' not in line], deleted
+
+
+@pytest.mark.slow
+def test_one_crossing_is_one_junction_and_no_car_turns_round_inside_it(scenarios):
+    """Krems 83637441 and the light beside it are one crossing, which netconvert left as two lights joined
+    by 0.2-m links (its "parallel incoming" reduction). SCVs that A* sent back up Hafenstrasse turned round
+    through both links, and one stood at the red crosswise over the next lane, where a car going straight
+    on hit it (the collision of `make experiment`, P2 system_B); with that turn removed but the two lights
+    left, four cars and the lead locked the crossing up from inside. The pipeline joins lights that close
+    into one junction: one signal, SUMO's own foe relations between all its movements, no U-turn (where
+    the street goes on), and every movement of the crossing still there."""
+    from cosim.scenario.conflicts import _short_loop
+    from cosim.scenario.network import light_joins
+
+    scn = scenarios["krems"]
+    net = sumolib.net.readNet(str(scn.net_file))
+    assert light_joins(net) == []
+    crossing = net.getEdge("104372792#0").getToNode()
+    assert "83637441" in crossing.getID() and "1204188756" in crossing.getID(), crossing.getID()
+    assert crossing.getType() == "traffic_light"
+    north, south = net.getEdge("104372792#0"), net.getEdge("-104372792#0")
+    assert south not in north.getOutgoing()  # no U-turn back up Hafenstrasse
+    assert {e.getID() for e in north.getOutgoing()} == {"104372792#3", "4776001#4", "53304184#7"}
+    assert [
+        (e.getID(), t.getID()) for e in net.getEdges() for t in e.getOutgoing() if _short_loop(e, t)
+    ] == []
 
 
 def test_no_turning_round_in_a_stub_too_short_for_it_and_no_cars_in_parking_aisles(tmp_path):
