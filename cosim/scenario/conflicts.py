@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -581,6 +582,27 @@ PATH_CLEARANCE_M = 2.6  # centre lines of two movements that do not cross stay t
 # a 1.8-m body each side (0.9 + 0.9), the 0.3-m margin and 0.5 m for the corners of a 5-m car on a curve
 
 
+# a shape that turns more than this between two 0.5-m steps turns back, which no car can (on its 7.3-m
+# minimum radius, AASHTO 2011 Table 2-2b, it turns 4 deg per 0.5 m; netconvert's own polylines have kinks of
+# up to ~90 deg where two internal lanes meet). Monaco 25345339: pushes that kept a left turn from crossing
+# itself folded its end back and forth (on 1.9 m, back 0.8 m, on 2.5 m), and SUMO, meeting the other
+# movement's lane seven times along it, let a car on each go into the other (plain SUMO, seed 8)
+MAX_STEP_TURN_DEG = 90.0
+
+
+def _folds(pts) -> bool:
+    """Whether a resampled polyline turns sharper than MAX_STEP_TURN_DEG between two consecutive steps."""
+    import numpy as np
+
+    d = np.diff(np.asarray(pts, dtype=float), axis=0)
+    d = d[np.hypot(*d.T) > 1e-6]
+    if len(d) < 2:
+        return False
+    heading = np.arctan2(d[:, 1], d[:, 0])
+    turn = np.abs((np.diff(heading) + np.pi) % (2 * np.pi) - np.pi)
+    return bool((turn > np.radians(MAX_STEP_TURN_DEG)).any())
+
+
 def _resample(pts, step: float = 0.5):
     import numpy as np
 
@@ -665,7 +687,7 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
                  and not shapely.LineString(orig[id(a)]).intersects(shapely.LineString(orig[id(b)]))]  # fmt: skip
         kernel = np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0
         # shapes that stop moving: another push would make them cross themselves (or netconvert's already do)
-        frozen = {k for k in involved if not shapely.LineString(orig[k]).is_simple}
+        frozen = {k for k in involved if not shapely.LineString(orig[k]).is_simple or _folds(orig[k])}
         for _ in range(rounds):
             disp = {k: np.zeros_like(v) for k, v in cur.items()}
             worst = clearance_m
@@ -691,8 +713,8 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
                 smooth = np.column_stack([np.convolve(np.pad(dv[:, i], 2, mode="edge"), kernel, "valid")
                                           for i in range(2)])  # fmt: skip
                 moved = pts + 0.5 * smooth * taper
-                if not shapely.LineString(moved).is_simple:
-                    frozen.add(k)  # pushed on, it would loop over itself: it stays as it is now
+                if not shapely.LineString(moved).is_simple or _folds(moved):
+                    frozen.add(k)  # pushed on, it would loop or fold over itself: it stays as it is now
                     continue
                 cur[k] = moved
         by_id = {id(c): c for c in unique}
@@ -715,3 +737,164 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
             after = shapely.LineString(cur[id(a)]).distance(shapely.LineString(cur[id(b)]))
             report.append((jid, a.chain[0], b.chain[0], round(d, 2), round(after, 2)))
     return lines, report
+
+
+# SUMO sizes the conflict of two crossing internal lanes from their angle at the crossing point alone: the foe
+# lane's width x (2 / max(sin(angle), 0.2) - 1), centred on the crossing (MSLink::setRequestInformation), and
+# lets the other movement go once a car's rear is half that past the crossing. A turn that crosses and then
+# bends to run alongside the other movement is still beside it there (SUMO issue #12721): Krems 268939011, a
+# left turner stopped by the queue beyond stood 2.4 m past the crossing, cleared by SUMO at 1.6 m, and the car
+# going straight on hit its rear corner; Helsinki's joined light 1371708587: a car standing 1.56 m past a
+# right turn that bends after the crossing, cleared at ~1.5 m. ``conflict_extents`` gives such pairs the
+# extent a car body really needs: the rear is past once the body no longer touches the strip the other
+# movement's cars sweep.
+SUMO_MIN_SIN = 0.2  # MSLink: the sine of the crossing angle is floored here
+CONFLICT_STEP_M = 0.1
+
+
+def _tangent(line, s: float) -> float:
+    a, b = line.interpolate(max(s - 0.25, 0.0)), line.interpolate(min(s + 0.25, line.length))
+    return math.atan2(b.y - a.y, b.x - a.x)
+
+
+def conflict_extents(net_file: Path, min_gap_m: float, car_length_m: float = CAR_LENGTH_M,
+                     car_width_m: float = VEHICLE_WIDTH_M, margin_m: float = CLEARANCE_MARGIN_M):  # fmt: skip
+    """(junction, movement standing, movement passing, startPos, endPos, SUMO's startPos, SUMO's endPos) for
+    every pair of foe movements where a car of the standing one, ``margin_m`` wider, would stand in the way
+    of the passing one's cars where SUMO does not expect it: past SUMO's end (it lets the passing car go), or
+    stopped ``min_gap_m`` short of SUMO's start (where it waits for the passing car). Positions are along the
+    standing movement's whole path through the junction in lane units (an internal lane's ``length`` may
+    exceed its shape's), as the net file's ``<conflict>`` element takes them."""
+    import shapely
+
+    root = ET.parse(net_file).getroot()
+    lanes = {lane.get("id"): lane for edge in root.iter("edge") for lane in edge.iter("lane")}
+    shapes, junctions, _ = _read(net_file)
+    out = []
+    for jid, conns, foes in junctions:
+        n = len(conns)
+        if not foes or n < 2 or any(c is None for c in conns):
+            continue
+        paths = [shapely.LineString([p for lane in c.chain for p in shapes[lane]]) for c in conns]
+        scales = [_LaneScale(c.chain, shapes, lanes) for c in conns]
+        for i, k in itertools.permutations(range(n), 2):
+            a, b = conns[i], conns[k]
+            if a is b or a.from_lane == b.from_lane or a.to_lane == b.to_lane:
+                continue  # one lane's movements, merges and diverges: SUMO treats them apart
+            if foes.get(i, "")[n - 1 - k : n - k] != "1" and foes.get(k, "")[n - 1 - i : n - i] != "1":
+                continue
+            crossing = paths[i].intersection(paths[k])
+            points = [g for g in getattr(crossing, "geoms", [crossing]) if g.geom_type == "Point"]
+            if not points:
+                continue
+            s_a = max(paths[i].project(p) for p in points)  # SUMO takes the last crossing
+            s_b = paths[k].project(paths[i].interpolate(s_a))
+            sine = abs(math.sin(_tangent(paths[i], s_a) - _tangent(paths[k], s_b)))
+            width_b = float(lanes[_lane_at(b.chain, shapes, s_b)].get("width", 3.2))
+            size = width_b * (2.0 / max(sine, SUMO_MIN_SIN) - 1.0)
+            # SUMO places the start in geometry and adds the size in lane units
+            sumo_start = scales[i].lane_pos(max(0.0, s_a - size / 2.0))
+            sumo_end = sumo_start + size
+            # the passing movement's cars sweep its path and the first metres of the road after it
+            strip = shapely.LineString(list(paths[k].coords) + _cut(shapes[b.to_lane], LANE_END_M, False)[1:])
+            strip = strip.buffer(car_width_m / 2.0, cap_style="flat")
+            lead_in = _cut(shapes[a.from_lane], car_length_m, True)
+            track = shapely.LineString(
+                lead_in[:-1] + list(paths[i].coords) + _cut(shapes[a.to_lane], car_length_m, False)[1:]
+            )
+            body = _Body(
+                track, shapely.LineString(lead_in).length, car_length_m, car_width_m / 2.0 + margin_m
+            )
+            length = paths[i].length
+            rear = scales[i].geo_pos(sumo_end)
+            end = sumo_end
+            if rear < length and body.touches(rear, strip):
+                while rear < length and body.touches(rear, strip):
+                    rear += CONFLICT_STEP_M
+                end = scales[i].lane_pos(min(rear, length))
+            front = scales[i].geo_pos(sumo_start) - min_gap_m  # where it stops for the passing car
+            start = sumo_start
+            if front > 0.0 and body.touches(front - car_length_m, strip):
+                while front > 0.0 and body.touches(front - car_length_m, strip):
+                    front -= CONFLICT_STEP_M
+                start = scales[i].lane_pos(max(front, 0.0)) + min_gap_m
+            if end > sumo_end or start < sumo_start:
+                out.append(
+                    (jid, a, b, round(start, 2), round(end, 2), round(sumo_start, 2), round(sumo_end, 2))
+                )
+    return out
+
+
+class _Body:
+    """A car body along a movement's track (the end of its road, its path, the start of the next road),
+    positions measured from the start of its path."""
+
+    def __init__(self, track, lead_in_m: float, length_m: float, half_width_m: float):
+        self.track, self.lead_in, self.length, self.half_width = track, lead_in_m, length_m, half_width_m
+
+    def touches(self, rear: float, strip) -> bool:
+        """Whether the body with its rear at ``rear`` touches ``strip``."""
+        import shapely.ops
+
+        s = self.lead_in + rear
+        body = shapely.ops.substring(self.track, max(s, 0.0), s + self.length)
+        return body.buffer(self.half_width, cap_style="flat").intersects(strip)
+
+
+class _LaneScale:
+    """Positions along a movement's internal lanes: geometric (along the shapes) <-> lane units (``length``)."""
+
+    def __init__(self, chain: list[str], shapes, lanes):
+        import shapely
+
+        self.geo = [shapely.LineString(shapes[lane]).length for lane in chain]
+        self.units = [float(lanes[lane].get("length", g)) for lane, g in zip(chain, self.geo, strict=True)]
+
+    def _map(self, s: float, src: list[float], dst: list[float]) -> float:
+        done = 0.0
+        for j, (a, b) in enumerate(zip(src, dst, strict=True)):
+            if s <= a or j == len(src) - 1:
+                return done + (s / a * b if a > 0 else 0.0)
+            s -= a
+            done += b
+        return done
+
+    def lane_pos(self, s: float) -> float:
+        return self._map(s, self.geo, self.units)
+
+    def geo_pos(self, s: float) -> float:
+        return self._map(s, self.units, self.geo)
+
+
+def _lane_at(chain: list[str], shapes, s: float) -> str:
+    """The internal lane of ``chain`` at distance ``s`` along the whole path."""
+    import shapely
+
+    for lane in chain[:-1]:
+        length = shapely.LineString(shapes[lane]).length
+        if s <= length:
+            return lane
+        s -= length
+    return chain[-1]
+
+
+def write_conflict_extents(net_file: Path, extents) -> None:
+    """Nest ``<conflict>`` elements for ``extents`` (``conflict_extents``) in their connections of the net file.
+    netconvert drops them when it reads a network, so this runs after the last netconvert pass."""
+    by_conn: dict[tuple[str, str, str, str], list[str]] = {}
+    for _jid, a, b, start, end, *_sumo in extents:
+        key = (a.from_edge, a.to_edge, a.from_lane.rsplit("_", 1)[1], a.to_lane.rsplit("_", 1)[1])
+        by_conn.setdefault(key, []).append(
+            f'        <conflict {_ref(b)} startPos="{start:.2f}" endPos="{end:.2f}"/>'
+        )
+    if not by_conn:
+        return
+    lines = net_file.read_text().split("\n")
+    for idx, line in enumerate(lines):
+        if not line.lstrip().startswith("<connection ") or " via=" not in line:
+            continue
+        attrs = dict(re.findall(r'(\w+)="([^"]*)"', line))
+        key = (attrs.get("from"), attrs.get("to"), attrs.get("fromLane"), attrs.get("toLane"))
+        if key in by_conn:
+            lines[idx] = line.rstrip()[:-2] + ">\n" + "\n".join(by_conn.pop(key)) + "\n    </connection>"
+    net_file.write_text("\n".join(lines))

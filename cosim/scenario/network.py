@@ -25,6 +25,7 @@ from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.scenario.conflicts import (
     approach_end_offsets,
+    conflict_extents,
     crossing_merge_deletions,
     fan_out_deletions,
     geometric_prohibitions,
@@ -33,6 +34,7 @@ from cosim.scenario.conflicts import (
     separated_shapes,
     sibling_change_bars,
     turnaround_deletions,
+    write_conflict_extents,
 )
 from cosim.scenario.osm import OsmInfo, SignNode
 from cosim.sumo_bridge.network import read_network
@@ -716,8 +718,17 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     plans = split_signal_plans(read_network(final, programs=True))
     write_signal_plans(final, plans)
     fixes["signal_plans_split"] = len(plans)
+    # last: netconvert drops <conflict> elements when it reads a network
+    extents = conflict_extents(final, behaviour.min_gap_m)
+    write_conflict_extents(final, extents)
+    fixes["conflicts_extended"] = len(extents)
     with fix_log.open("a") as fh:
         fh.write(
             "".join(f"{t}: a permissive left on a shared lane, its phase split by approach\n" for t in plans)
+            + "".join(
+                f"{j} {a.from_edge}->{a.to_edge} in the way of {b.from_edge}->{b.to_edge} from {s0} to {s1} m "
+                f"(SUMO: {z0} to {z1} m)\n"
+                for j, a, b, s0, s1, z0, z1 in extents
+            )
         )
     return NetworkBuild(final, placements, junction_kind, signed, tls_approaches, runs, fixes)

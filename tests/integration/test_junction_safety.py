@@ -14,6 +14,7 @@ each shipped map's traffic with collision checking on junctions (build.py's sumo
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -65,6 +66,8 @@ def test_built_network_has_no_unsafe_junction_geometry(scenarios, name):
     _, moved = internal_stop_fixes(scn.net_file)
     assert moved == [], moved[:5]  # no car waits inside a junction in the way of the traffic it waits for
     assert fixes["internal_lanes_reshaped"] > 0, fixes
+    # every pair of crossing movements whose conflict SUMO sizes too small has its extent in the network
+    assert scn.net_file.read_text().count("<conflict ") == fixes["conflicts_extended"] > 50, fixes
     # movements that do not cross stay apart (before: 0.01 m on Krems, 0.78 m on Munich); where the lanes
     # they join are themselves close (junctions joined by sub-metre edges), up to ~1.4 m are left
     _, close = separated_shapes(scn.net_file)
@@ -107,7 +110,8 @@ def test_600s_of_plain_sumo_on_shipped_map(scenarios, name):
     One SUMO seed is a lottery (any change of the network reshuffles the routes), so three are run. Krems,
     SUMO seeds 1-10 (the scenario's own, then 2-10): 2 collisions, both inside the crossing of 83637441 and
     the light 0.2 m beside it, and 4-29 teleports (up to 1.9 %); with that crossing one junction and no
-    turning round through short loops (session 28): 0 collisions, 9-13 teleports (0.6-0.85 %).
+    turning round through short loops (session 28): 0 collisions, 9-13 teleports (0.6-0.85 %); with the
+    conflict extents on top: 0 collisions, 109 teleports in the 10 runs (0.7 %).
     """
     scn = scenarios[name]
     results = [check_scenario(scn.dir, 600.0, seed=seed, record=False) for seed in (None, 2, 3)]
@@ -241,3 +245,82 @@ def test_no_lane_change_inside_a_junction_into_the_lane_a_slip_road_runs_beside(
     no_slip = plain_net(tmp_path / "plain", {k: nodes[k] for k in "WCE"}, {k: edges[k] for k in ("WC", "CE")},
                         priority_nodes=["C"])  # fmt: skip
     assert sibling_change_bars(no_slip) == ([], [])
+
+
+def test_a_car_standing_past_a_crossing_that_bends_alongside_is_waited_for(tmp_path):
+    """SUMO clears a car standing past a crossing once its rear is half a conflict size (from the angle at
+    the crossing only) beyond it (SUMO issue #12721). A turn that crosses a road at 75 deg and then bends to
+    run 1.5 m beside it: a car F on the turn, stopped behind a standing car X, stands 2.4 m past the crossing
+    with its body still over the road, and the car E on the road drove into it. With the pipeline's conflict
+    extents (``conflict_extents``, written into the net file) E waits until F has gone."""
+    from cosim.scenario.conflicts import conflict_extents, write_conflict_extents
+    from cosim.sumo_bridge.tools import run_tool
+
+    (tmp_path / "n.nod.xml").write_text(
+        '<nodes><node id="C" x="0" y="0" type="priority" shape="-12,-12 12,-12 12,12 -12,12"/>'
+        '<node id="B0" x="-100" y="0"/><node id="B1" x="100" y="0"/>'
+        '<node id="A0" x="-26.795" y="-100"/><node id="A1" x="100" y="25"/></nodes>'
+    )
+    road = 'numLanes="1" speed="13.9" spreadType="center"'
+    (tmp_path / "n.edg.xml").write_text(
+        f'<edges><edge id="b_in" from="B0" to="C" priority="3" {road}/>'
+        f'<edge id="b_out" from="C" to="B1" priority="3" {road}/>'
+        f'<edge id="a_in" from="A0" to="C" priority="1" {road}/>'
+        f'<edge id="a_out" from="C" to="A1" priority="1" {road}/></edges>'
+    )
+    (tmp_path / "n.con.xml").write_text(
+        '<connections><connection from="b_in" to="b_out" fromLane="0" toLane="0"/>'
+        '<connection from="a_in" to="a_out" fromLane="0" toLane="0" keepClear="false" '
+        'shape="-3.2154,-12 0.268,1.0 1.2,1.5 8,1.5 12,3"/></connections>'
+    )
+    net = tmp_path / "n.net.xml"
+    run = run_tool("netconvert", ["-n", str(tmp_path / "n.nod.xml"), "-e", str(tmp_path / "n.edg.xml"),
+                                  "-x", str(tmp_path / "n.con.xml"), "--no-turnarounds", "true", "-o", str(net)])  # fmt: skip
+    assert run.returncode == 0, run.log
+    # F's minGap puts its rear 2.4 m past the crossing behind X; E comes along the road at 20 s
+    (tmp_path / "r.rou.xml").write_text(
+        '<routes><vType id="car" sigma="0" length="5" width="1.8" minGap="2.5"/>'
+        '<vType id="carF" sigma="0" length="5" width="1.8" minGap="5.77"/>'
+        '<vehicle id="X" type="car" depart="0" departPos="5" departSpeed="0"><route edges="a_out"/>'
+        '<stop lane="a_out_0" endPos="5" duration="1000"/></vehicle>'
+        '<vehicle id="F" type="carF" depart="0" departPos="40" departSpeed="max"><route edges="a_in a_out"/>'
+        '</vehicle><vehicle id="E" type="car" depart="20" departPos="40" departSpeed="max">'
+        '<route edges="b_in b_out"/></vehicle></routes>'
+    )
+
+    def collisions(net_file):
+        out = tmp_path / f"{net_file.stem}.collisions.xml"
+        run = run_tool("sumo", ["-n", str(net_file), "-r", str(tmp_path / "r.rou.xml"), "--end", "80",
+                                "--collision.check-junctions", "true", "--collision.action", "warn",
+                                "--collision-output", str(out), "--no-step-log", "true"])  # fmt: skip
+        assert run.returncode == 0, run.log
+        return out.read_text().count("<collision ")
+
+    assert collisions(net) == 1  # the premise: SUMO alone lets E into F
+    extents = conflict_extents(net, min_gap_m=2.5)  # the route file's car minGap
+    # both ways: F past the crossing in E's way, and a car on the road in the way of the turn bending beside it
+    assert sorted((a.from_edge, b.from_edge) for _j, a, b, *_ in extents) == [
+        ("a_in", "b_in"),
+        ("b_in", "a_in"),
+    ]
+    start, end, sumo_start, sumo_end = next(e[3:] for e in extents if e[1].from_edge == "a_in")
+    assert (
+        start <= sumo_start and sumo_end < 14.8 < end
+    )  # F's rear (14.82 along the turn) is inside the extent, not SUMO's
+    write_conflict_extents(net, extents)
+    assert "<conflict " in net.read_text()
+    assert collisions(net) == 0
+
+
+def test_a_pushed_shape_never_folds_back():
+    """Monaco 25345339: pushes apart that kept a left turn from crossing itself folded its end back and forth,
+    and SUMO, meeting the other movement's lane seven times along it, let a car on each go into the other.
+    A shape that turns back between two 0.5-m steps is not pushed on; a car's tight turn is no fold."""
+    from cosim.scenario.conflicts import _folds, _resample
+
+    folded = [(364.56, 295.17), (366.21, 301.44), (367.78, 303.29), (368.70, 305.02), (368.48, 306.50),
+              (366.84, 307.90), (367.50, 309.62), (368.48, 311.31), (367.88, 310.76), (368.27, 313.21)]  # fmt: skip
+    assert _folds(_resample(folded))
+    # a left turn on the 7.3-m minimum radius, sampled every 0.1 rad
+    turn = [(7.3 * math.cos(t / 10), 7.3 * math.sin(t / 10)) for t in range(16)]
+    assert not _folds(_resample(turn))
