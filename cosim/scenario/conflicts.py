@@ -14,7 +14,8 @@ without a foe relation, and returns a netconvert ``<prohibition>`` for it: the l
 yields to the higher-ranked one (major before minor, straight before right before left before U-turn).
 ``turnaround_deletions`` removes U-turns at junctions that are not dead ends (netconvert's turnarounds, turns
 onto another road that reverse the heading within a car's length, and turns back to the junction just left
-within a car's turning half circle): on a two-lane street a car cannot turn on the spot, and SUMO's turnaround lane sweeps across the movements of the whole junction.
+within a car's turning half circle): on a two-lane street a car cannot turn on the spot, and SUMO's
+turnaround lane sweeps across the movements of the whole junction.
 ``sibling_change_bars`` bars lane changes inside a junction into a lane that another movement of the same
 incoming lane runs beside (SUMO's lane changer does not see that one). ``separated_shapes`` gives custom
 internal-lane shapes to movements that run side by side closer than two car widths without crossing: SUMO
@@ -745,9 +746,9 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
 # bends to run alongside the other movement is still beside it there (SUMO issue #12721): Krems 268939011, a
 # left turner stopped by the queue beyond stood 2.4 m past the crossing, cleared by SUMO at 1.6 m, and the car
 # going straight on hit its rear corner; Helsinki's joined light 1371708587: a car standing 1.56 m past a
-# right turn that bends after the crossing, cleared at ~1.5 m. ``conflict_extents`` gives such pairs the
-# extent a car body really needs: the rear is past once the body no longer touches the strip the other
-# movement's cars sweep.
+# right turn that bends after the crossing, cleared at 1.41 m (SUMO adds the size in lane units, 18 % longer
+# there than the shape). ``conflict_extents`` gives such pairs the extent a car body really needs: the rear is
+# past once the body no longer touches the strip the other movement's cars sweep.
 SUMO_MIN_SIN = 0.2  # MSLink: the sine of the crossing angle is floored here
 CONFLICT_STEP_M = 0.1
 
@@ -895,6 +896,11 @@ def write_conflict_extents(net_file: Path, extents) -> None:
             continue
         attrs = dict(re.findall(r'(\w+)="([^"]*)"', line))
         key = (attrs.get("from"), attrs.get("to"), attrs.get("fromLane"), attrs.get("toLane"))
-        if key in by_conn:
-            lines[idx] = line.rstrip()[:-2] + ">\n" + "\n".join(by_conn.pop(key)) + "\n    </connection>"
+        if key not in by_conn:
+            continue
+        children = "\n".join(by_conn.pop(key))
+        if line.rstrip().endswith("/>"):
+            lines[idx] = line.rstrip()[:-2] + ">\n" + children + "\n    </connection>"
+        else:  # it has children already (params)
+            lines[idx] = line + "\n" + children
     net_file.write_text("\n".join(lines))

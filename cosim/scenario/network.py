@@ -655,19 +655,20 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     if not [e for e in net1.getEdges() if e.allows("passenger")]:
         raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
     joins = light_joins(net1)
+    run_join = None
     if joins:
         join_file = workdir / "join.nod.xml"
         join_file.write_text(
             "<nodes>\n" + "".join(f'    <join nodes="{" ".join(g)}"/>\n' for g in joins) + "</nodes>\n"
         )
         joined = workdir / "joined.net.xml"
-        run_j = run_tool("netconvert", ["--sumo-net-file", str(pass1), "--node-files", str(join_file),
+        run_join = run_tool("netconvert", ["--sumo-net-file", str(pass1), "--node-files", str(join_file),
                                         "--tls.default-type", TLS_TYPE, "--tls.layout", "opposites",
                                         *COMMON_OPTIONS, "--offset.disable-normalization", "true",
                                         "--output-file", str(joined)])  # fmt: skip
         with (workdir / "netconvert.log").open("a") as fh:
-            fh.write("\n--- pass 1b (one crossing, one junction) ---\n" + run_j.log)
-        _check("netconvert (junction joins)", run_j, osm.path)
+            fh.write("\n--- pass 1b (one crossing, one junction) ---\n" + run_join.log)
+        _check("netconvert (junction joins)", run_join, osm.path)
         os.replace(joined, pass1)
         join_file.unlink()
         net1 = read_network(pass1, programs=True)
@@ -694,7 +695,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         f.unlink(missing_ok=True)
     # netconvert rebuilds the junctions it patched (a prohibition adds an internal stop, a deleted connection
     # reshapes its neighbours): check the result and fix again until nothing is left
-    runs = [("pass1", run1), ("pass2", run2)]
+    runs = [("pass1", run1), *([("pass1b", run_join)] if run_join else []), ("pass2", run2)]
     fixes["fix_rounds"] = 1
     for i in range(FIX_ROUNDS - 1):
         con = workdir / "fixes.con.xml"
