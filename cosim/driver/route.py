@@ -236,6 +236,23 @@ class RoutePath:
         spans += [(a, b, lane.rpartition("_")[0]) for a, b, lane in self.via_lanes]
         return {eid for a, b, eid in spans if a <= s_to and b >= s_from}
 
+    def passes_near_itself(
+        self, radius_m: float, min_back_m: float, step_m: float = 1.0
+    ) -> list[tuple[float, float]]:
+        """Arc spans where the path comes within ``radius_m`` (in the plane) of a stretch of itself at least
+        ``min_back_m`` of road earlier: a junction passed twice, a bridge over its own earlier road."""
+        import shapely
+
+        s = np.arange(0.0, self.length_m, step_m)
+        if s.size < 2:
+            return []
+        pts = shapely.points(np.interp(s, self.s, self.xy[:, 0]), np.interp(s, self.s, self.xy[:, 1]))
+        i, j = shapely.STRtree(pts).query(pts, predicate="dwithin", distance=radius_m)
+        near = np.zeros(s.size, bool)
+        near[i[s[i] - s[j] >= min_back_m]] = True
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], near.astype(np.int8), [0]])))
+        return [(float(s[a]), float(s[b - 1])) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
     def edge_index(self, s: float) -> int:
         """Index in the route of the edge at arc position ``s`` (the edge just left while in a junction)."""
         return max(0, int(self.limit_s.searchsorted(s, side="right")) - 1)

@@ -47,6 +47,13 @@ ON_PATH_M = 2.0  # the ego's centre this close to its path's centre line is cert
 ON_ROUTE_M = 3.5
 # ... except within this of a junction the route passes a second time (``_in_junction_passed_before``) [m]
 REPASS_MARGIN_M = 5.0
+# ... and where the path passes within this of a stretch of itself driven before (at least REPASS_BACK_M of
+# road earlier), such as a bridge over its own earlier road: keepRoute=1 matches the pose onto the nearest
+# edge of the route SUMO holds, which keeps the edges driven. Moscow (graphhopper's extract) seed 2: under
+# -19032712, driven 4 edges earlier, the twin was put onto it for one step, into scv830 driving there (a
+# collision of the ego); the free mapping with the path's lane as hint keeps it on its own road [m]
+REPASS_RADIUS_M = 5.0
+REPASS_BACK_M = 60.0
 # ... and for this far after SUMO put the twin, mapped on its route, onto a road the route passed before:
 # keepRoute=1 searches the route's passed edges too (SUMO keeps them in the route it holds, whatever it is
 # given), and where such a road runs under or beside the ego's (Krems 38571954 over -51713752#0, seven edges
@@ -253,6 +260,8 @@ class EgoController:
         self._route_renewed = False  # the route changed within what SUMO holds: SUMO must get it again
         self._repassed: list[tuple[float, float]] = []  # arc spans of junctions the route passes again ...
         self._repassed_for = None  # ... on this path
+        self._near_self: list[tuple[float, float]] = []  # arc spans where the path passes near itself ...
+        self._near_self_for = None  # ... on this path
         # waiting for a gap: (route index of the lane change's edge, since [s])
         self._merge_held: tuple[int, float] | None = None
         # the car letting the ego in: (its id, since [s], route index of the lane change's edge)
@@ -772,7 +781,8 @@ class EgoController:
         twin_inside = mapped and w.edge_names[w.edge_code[slot]].startswith(":")
         on_route = (self._on_sumo_route and mapped and abs(p.lateral_error_m) <= ON_ROUTE_M
                     and self.s_front_m > self._free_mapping_until_s
-                    and not (twin_inside and self._in_junction_passed_before(self.s_front_m)))  # fmt: skip
+                    and not (twin_inside and self._in_junction_passed_before(self.s_front_m))
+                    and not self._over_an_earlier_pass(self.s_front_m))  # fmt: skip
         self._mapped_on_route = on_route
         if on_route and self._new_lane is not None:  # SUMO maps the twin onto the nearest lane: that one
             x, y = self._new_lane.onto_new_lane(x, y)
@@ -835,6 +845,17 @@ class EgoController:
                 seen.add(stop.junction)
             self._repassed, self._repassed_for = spans, path
         return any(a <= s_front <= b for a, b in self._repassed)
+
+    def _over_an_earlier_pass(self, s_front: float | None) -> bool:
+        """Whether the ego's front is within REPASS_MARGIN_M of where its path passes near a stretch of
+        itself driven before (see REPASS_RADIUS_M)."""
+        if s_front is None:
+            return False
+        if self._near_self_for is not self.path:
+            spans = self.path.passes_near_itself(REPASS_RADIUS_M, REPASS_BACK_M)
+            self._near_self = [(a - REPASS_MARGIN_M, b + REPASS_MARGIN_M) for a, b in spans]
+            self._near_self_for = self.path
+        return any(a <= s_front <= b for a, b in self._near_self)
 
     def close(self) -> None:
         pass

@@ -173,3 +173,16 @@ def test_a_lane_change_put_off_starts_further_on_but_ends_before_the_edge_does()
     assert np.allclose(on_lane_0[:, 1], 0.0)  # in its lane until then
     assert later.length_m == pytest.approx(now.length_m, abs=0.01)  # the same diagonal, further on
     assert later.edge_index(150.0) == 1 and later.speed_limit(120.0)[0] == now.speed_limit(120.0)[0]
+
+
+def test_where_a_path_passes_over_its_own_earlier_stretch():
+    """A route that loops round and passes over its first street (a bridge, or a junction passed twice):
+    the later pass is found, the first pass and the loop's own bends are not (Moscow seed 2: SUMO put the
+    ego's twin onto the road it had driven four edges earlier, under which it now passed)."""
+    # east 200 m, north 100, west 100, south 150: crosses the first leg at (100, 0), 500 m along the path
+    path = RoutePath([(0.0, 0.0), (200.0, 0.0), (200.0, 100.0), (100.0, 100.0), (100.0, -50.0)])
+    spans = path.passes_near_itself(radius_m=5.0, min_back_m=60.0)
+    assert len(spans) == 1
+    a, b = spans[0]
+    assert 494.0 <= a <= 496.0 and 504.0 <= b <= 506.0, spans  # within 5 m of (100, 0) on the last leg
+    assert RoutePath([(0.0, 0.0), (300.0, 0.0)]).passes_near_itself(5.0, 60.0) == []
