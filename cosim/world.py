@@ -125,6 +125,11 @@ class World:
             self.edge_names.append(edge_id)
         return code
 
+    def edges_of(self, slots: np.ndarray) -> list[str]:
+        """The SUMO edge ids of the vehicles in ``slots`` ("" where unknown)."""
+        names = self.edge_names
+        return [names[c] if c >= 0 else "" for c in self.edge_code[slots].tolist()]
+
     # -- views ---------------------------------------------------------------------------------------------
     def live(self) -> tuple[np.ndarray, list[str]]:
         """(slots, ids) of the live vehicles in slot order; cached until the next add/remove (the per-step

@@ -22,6 +22,9 @@ LANE_CHANGE_END_MARGIN_M = 5.0
 # the car's side reaches the next lane a fifth of the way across it: (3.2 m lane - 1.8 m car) / 2 / 3.2 m = 0.22
 LANE_CHANGE_ENTER_FRACTION = 0.2
 BOX_SEGMENTS = 8  # vehicles_on_path pre-selects points by the bounding boxes of runs of this many segments
+# a vehicle seen on the path counts when SUMO has it on an edge or junction of the path this near: a car's
+# length and a junction's width from where its points project [m]
+ROAD_REACH_M = 20.0
 PROJECT_BEHIND_M, PROJECT_AHEAD_M = 20.0, 50.0  # the ego moves < 5 m a step: the path is searched this near
 
 
@@ -236,6 +239,38 @@ class RoutePath:
         spans += [(a, b, lane.rpartition("_")[0]) for a, b, lane in self.via_lanes]
         return {eid for a, b, eid in spans if a <= s_to and b >= s_from}
 
+    def on_its_roads(self, edges: list[str], s: np.ndarray, reach_m: float = ROAD_REACH_M) -> np.ndarray:
+        """Whether vehicles that SUMO has on ``edges`` (edge ids, "" unknown) and that lie on the path at arc
+        positions ``s`` are on a road the path takes there: an edge of it, or a junction it passes, within
+        ``reach_m``. A road drawn on top of the route is not (a one-way slip road mapped 1 m beside Krems'
+        An der Schuett up to the junction where it merges: its queue, waiting to merge, stood on the ego's
+        path and the participant stood behind it 160 s; a road on a bridge over the route). SUMO's own cars
+        see only cars on their lanes and on the junctions ahead; an unknown edge counts as on the road, and
+        so does everything for a path built without its edges."""
+        s = np.asarray(s, dtype=np.float64)
+        if not self.edge_lanes:
+            return np.ones(s.shape, dtype=bool)
+        spans = self._road_spans
+        out = np.zeros(s.shape, dtype=bool)
+        for k, (edge, at) in enumerate(zip(edges, s.tolist(), strict=True)):
+            key = _junction_of(edge) if edge.startswith(":") else edge
+            found = spans.get(key)
+            out[k] = not edge or (
+                found is not None and bool(((found[0] <= at + reach_m) & (found[1] >= at - reach_m)).any())
+            )
+        return out
+
+    @cached_property
+    def _road_spans(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Arc spans (begin, end) where the path is on each of its edges and in each junction it passes
+        (keyed ":" + junction id)."""
+        spans: dict[str, list[tuple[float, float]]] = {}
+        for a, b, eid, _ in self.edge_lanes:
+            spans.setdefault(eid, []).append((a, b))
+        for a, b, lane in self.via_lanes:
+            spans.setdefault(_junction_of(lane.rpartition("_")[0]), []).append((a, b))
+        return {k: (np.array([a for a, _ in v]), np.array([b for _, b in v])) for k, v in spans.items()}
+
     def passes_near_itself(
         self, radius_m: float, min_back_m: float, step_m: float = 1.0
     ) -> list[tuple[float, float]]:
@@ -407,6 +442,11 @@ def _watched_lanes(net, edge, arriving: int, leaving: int, came_by: set[str]):
                     if lane.getID() not in came_by:
                         feeders.setdefault(lane.getID(), start)
     return enters, feeders, entered[-1].getID()
+
+
+def _junction_of(internal_edge: str) -> str:
+    """The key of the junction an internal edge (":<junction id>_<index>") lies in: ":" + junction id."""
+    return internal_edge.rpartition("_")[0]
 
 
 def _for_cars(lane) -> bool:

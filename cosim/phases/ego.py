@@ -444,6 +444,9 @@ class EgoController:
             )
             keep = (rows < n) | along
             veh, s_at = veh[keep], s_at[keep]
+        if veh.size:  # only vehicles SUMO has on a road of the route there (RoutePath.on_its_roads)
+            keep = self.path.on_its_roads(w.edges_of(idx[veh]), s_at)
+            veh, s_at = veh[keep], s_at[keep]
         if veh.size == 0:
             return kw, []
         s_rear = np.full(n, np.inf)  # per vehicle, the nearest of its points on the path

@@ -608,7 +608,8 @@ class LeadVehicle:
             return False
         dx, dy = controller.path.direction_at(s)
         along = ux[others[rows]] * dx + uy[others[rows]] * dy
-        return bool((along > math.cos(math.radians(CROSSING_DEG))).any())
+        on_road = controller.path.on_its_roads(w.edges_of(others[rows]), s)
+        return bool(((along > math.cos(math.radians(CROSSING_DEG))) & on_road).any())
 
     def close(self) -> None:
         pass

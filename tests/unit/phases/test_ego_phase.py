@@ -401,6 +401,35 @@ def test_a_car_on_a_road_passing_under_the_route_is_no_crossing_car():
         assert (d.ego.percept.crossing_dist_m < math.inf) == stops, (y_m, d.ego.percept.crossing_dist_m)
 
 
+def test_a_car_on_a_road_drawn_over_the_route_is_no_leader_and_the_ego_drives_past_it():
+    """Krems, An der Schuett: a one-way slip road mapped 1 m beside the route up to the junction where it
+    merges as the minor road. Its queue stood on the route as drawn; the participant stood 160 s behind it,
+    and the queue waited for the participant. SUMO's own cars see only cars on their own lanes and in the
+    junctions ahead, and so does the driver: a car on an edge or junction of the route there (20 m) is a
+    leader; one on an edge the route takes farther on is on another stretch of road (a bridge, a loop)."""
+    edges = [(0.0, 195.0, "a", 0), (205.0, 400.0, "b", 0), (410.0, 600.0, "c", 0)]
+    vias = [(195.0, 205.0, ":J_0_0"), (400.0, 410.0, ":K_3_0")]
+    limits = [(a, 13.89) for a, _, _, _ in edges]  # one per edge: the route index of an arc position
+    path = RoutePath([(0.0, 0.0), (0.0, 600.0)], (), limits, edges, via_lanes=vias)
+    for edge, leader in (("slip", False), ("a", True), ("b", False), (":J_0", False), (":K_3", False), ("", True)):
+        d = Drive()
+        d.ego.path = path
+        d.place()
+        _crosser(d, 40.0, 0.5, 0.0, 0.0, edge)  # standing on the route 34 m ahead, heading along it
+        d.step()
+        assert (d.ego.percept.leader_id == "x1") == leader, edge
+    assert path.on_its_roads([":J_0", ":K_3", "c", "b"], np.array([185.0, 405.0, 300.0, 300.0])).tolist() == [
+        True, True, False, True,
+    ]  # fmt: skip
+    d = Drive()
+    d.ego.path = path
+    d.place()
+    _crosser(d, 40.0, 0.5, 0.0, 0.0, "slip")
+    for _ in range(100):  # 10 s
+        d.step()
+    assert 6.0 + d.car.y > 60.0 and d.car.v > 5.0  # past the queue on the road drawn beside
+
+
 def test_the_ego_stops_short_of_a_car_standing_across_its_way_and_goes_once_it_has_gone():
     d = Drive()
     d.place()
