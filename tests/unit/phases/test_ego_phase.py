@@ -411,7 +411,14 @@ def test_a_car_on_a_road_drawn_over_the_route_is_no_leader_and_the_ego_drives_pa
     vias = [(195.0, 205.0, ":J_0_0"), (400.0, 410.0, ":K_3_0")]
     limits = [(a, 13.89) for a, _, _, _ in edges]  # one per edge: the route index of an arc position
     path = RoutePath([(0.0, 0.0), (0.0, 600.0)], (), limits, edges, via_lanes=vias)
-    for edge, leader in (("slip", False), ("a", True), ("b", False), (":J_0", False), (":K_3", False), ("", True)):
+    for edge, leader in (
+        ("slip", False),
+        ("a", True),
+        ("b", False),
+        (":J_0", False),
+        (":K_3", False),
+        ("", True),
+    ):
         d = Drive()
         d.ego.path = path
         d.place()
