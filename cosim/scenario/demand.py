@@ -330,8 +330,26 @@ class RouteChainer:
 
     def loops(self, leg: list[str]) -> bool:
         """Whether ``leg`` passes one junction twice."""
-        nodes = [self.to_node[e] for e in leg]
-        return len(set(nodes)) < len(nodes)
+        return passes_a_junction_twice(leg, self.to_node)
+
+
+def passes_a_junction_twice(route: list[str], to_node: dict[str, str]) -> bool:
+    """Whether ``route`` passes one junction twice (``to_node``: each edge's end junction): a loop round a
+    block, a roundabout or through a parking lot to turn round."""
+    nodes = [to_node[e] for e in route]
+    return len(set(nodes)) < len(nodes)
+
+
+def turns_round(route: list[str], to_node: dict[str, str], opposite: dict[str, str]) -> bool:
+    """Whether ``route`` turns round: it passes a junction twice, or drives back along a street it has
+    driven (``opposite``: each edge's other direction; a dual carriageway's turns round through the
+    junctions at its ends, never the same one twice)."""
+    driven: set[str] = set()
+    for e in route:
+        if opposite.get(e) in driven:
+            return True
+        driven.add(e)
+    return passes_a_junction_twice(route, to_node)
 
 
 STUCK_BATCHES = 3  # the ego's route starts again elsewhere after this many batches in a row gave no leg
@@ -400,6 +418,12 @@ class Demand:
 
 
 POOL_ROUTES_PER_ORIGIN = 4
+# destinations drawn per origin, of which the first POOL_ROUTES_PER_ORIGIN reached without passing a junction
+# twice are kept: a car leaves its parking spot towards where it is going. Every destination as drawn, 20 %
+# of Krems' pool routes turned round (436 of 2155 came back along their origin street): the cars that turned
+# round Krems' roundabout 24746392 crossed 268939333 twice, and its minor road's queue held the experiment's
+# participants 90 s in every baseline (make experiment)
+POOL_DRAWS_PER_ORIGIN = 8
 POOL_MIN_EDGE_M = 20.0  # room to insert on an origin edge
 
 
@@ -410,17 +434,21 @@ def build_route_pool(comp: list, table: RouteTable, net_file: Path, workdir: Pat
     dest_ids, w_dest = trip_ends(comp)
     # seeded by the network's edges (not a cache key, which depends on where cosim is installed)
     rng = np.random.default_rng(zlib.crc32(" ".join(e.getID() for e in comp).encode()))
-    pairs = [
-        (o, dest_ids[int(j)])
-        for o in origins
-        for j in rng.choice(len(dest_ids), POOL_ROUTES_PER_ORIGIN, p=w_dest)
-    ]
-    pairs = [p for p in dict.fromkeys(pairs) if p[0] != p[1]]
+    drawn = {o: [dest_ids[int(j)] for j in rng.choice(len(dest_ids), POOL_DRAWS_PER_ORIGIN, p=w_dest)]
+             for o in origins}  # fmt: skip
+    pairs = [p for p in dict.fromkeys((o, d) for o, ds in drawn.items() for d in ds) if p[0] != p[1]]
     # each origin as drawn (traffic spawns on any of them), the destination street in its better direction
     free_s = {e.getID(): e.getLength() / max(e.getSpeed(), 1.0) for e in comp}  # at the limit [s]
-    routes = route_trips(pairs, dest_ids, opposite_edges(comp), lambda r: sum(free_s[e] for e in r), table,
-                         net_file, workdir, turn_origin=False)  # fmt: skip
-    pool = list(dict.fromkeys(routes[p] for p in pairs if routes.get(p)))
+    opposite = opposite_edges(comp)
+    routes = route_trips(pairs, dest_ids, opposite, lambda r: sum(free_s[e] for e in r), table, net_file,
+                         workdir, turn_origin=False)  # fmt: skip
+    to_node = {e.getID(): e.getToNode().getID() for e in comp}
+    pool = []
+    for o, ds in drawn.items():
+        found = [r for r in dict.fromkeys(routes.get((o, d)) for d in ds) if r]
+        ahead = [r for r in found if not turns_round(r, to_node, opposite)]
+        pool += (ahead or found)[:POOL_ROUTES_PER_ORIGIN]  # turning round only where it must (a dead end)
+    pool = list(dict.fromkeys(pool))
     if not pool:
         raise CosimError("no origin/destination pair could be routed on this network")
     return pool
