@@ -59,6 +59,9 @@ _GIVE_WAY_COMMIT_M = 2.0  # [m] this close to a clear give-way line the driver c
 _STOPPED_MPS = 0.1  # [m/s] "full stop" at a stop sign
 _CREEP_MPS = 1.0  # [m/s] slower than this near a yield line counts as waiting there
 _WAIT_ZONE_M = 15.0  # [m] ... within this distance of the line (a queue in front of it included)
+_GO_HELD_S = (
+    1.0  # [s] standing this long after deciding to go at a yield line, the driver judges the gap again
+)
 _FOLLOW_THROUGH_M = 12.0  # [m] a leader whose rear is at most this far past the line has just entered
 _CROSSING_MARGIN_M = 1.0  # [m] the driver stops this short of a crossing car's way
 _LEADER_ACCEL_SMOOTH_S = 0.3  # [s] smoothing of the perceived leader acceleration
@@ -259,6 +262,7 @@ class ScriptedDriver(Driver):
         self._sign_waited_s = 0.0  # waiting at the current yield line: the driver grows impatient
         self._yielding = False  # the gap at the current yield line is too short (or the junction blocked)
         self._following_through = False  # taking the gap the leader entered, behind it (follow-up headway)
+        self._go_held_s = 0.0  # standing since deciding to go at the current yield line [s]
         self.debug: DriverDebug | None = None
 
     # ------------------------------------------------------------------------------------------------------
@@ -531,6 +535,14 @@ class ScriptedDriver(Driver):
             needed = min(needed, follow_up_s(d.movement, prof.critical_gap_factor))
         self._yielding = d.conflict or d.jgap - age < needed
         self._following_through = (just_entered or self._following_through) and not self._yielding
+        held = self._sign_phase == "go" and v < _STOPPED_MPS
+        self._go_held_s = self._go_held_s + dt_s if held else 0.0
+        if self._go_held_s > _GO_HELD_S and self._yielding:
+            # held short of the junction after deciding to go (by the car ahead), the driver looks again
+            # before pulling off: committed while the lead stood just past the line, the participant pulled
+            # off behind it 4 s later into a priority road's left turner that had started meanwhile (Krems
+            # 268939011, make experiment)
+            self._sign_phase = "wait" if d.sign == "stop" else "approach"
         if d.sign == "stop":
             if self._sign_phase == "approach":
                 if v < _STOPPED_MPS and to_stop < _NEAR_LINE_M:

@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 from driver_testsim import Leader, Route, scripted, simulate
 
+from cosim.driver.scripted import _GIVE_WAY_COMMIT_M
+
 LINE_S = 150.0  # [m] arc length of the stop line in the light / sign scenarios
 
 
@@ -154,6 +156,30 @@ def test_give_way_slows_when_clear_and_stops_for_a_conflict():
     k = busy.at(25.0)
     assert busy.v[k] == 0.0 and 0.0 < LINE_S - busy.s_front[k] <= 1.0
     assert busy.s_front[-1] > LINE_S + 10.0
+
+
+def test_held_at_a_give_way_line_by_the_car_ahead_the_driver_looks_again_before_pulling_off():
+    """Krems 268939011 (make experiment, seed 8): queued behind the lead standing just past a give-way line,
+    with no priority car in sight, the participant committed to going; when the lead drove on 4 s later, it
+    pulled off behind it into a left turner of the priority road that had started meanwhile (1.9 s away),
+    and they collided in the junction. A driver held by the car ahead judges the gap again when it can go."""
+    leader = Leader(s_rear=LINE_S + 1.0, v=0.0, accel=lambda t, ld: 2.0 if t >= 20.0 else 0.0)
+
+    def extras(t, s, v):
+        if s >= LINE_S + 5.0:
+            return {}
+        gap = math.inf if t < 15.0 or t > 27.0 else max(0.0, 25.0 - t)  # a priority car passes at 25 s
+        return dict(sign_kind="give_way", sign_dist_m=max(0.0, LINE_S - s), sign_id="J2", junction_gap_s=gap)
+
+    drv = scripted("daily_commuter")
+    tr = simulate(drv, Route.straight(), 45.0, v0_mps=6.0, s0_m=LINE_S - 40.0, speed_limit_mps=14.0,
+                  leader=leader, extras=extras)  # fmt: skip
+    k = tr.at(15.0)
+    assert (
+        tr.v[k] < 0.1 and LINE_S - tr.s_front[k] < _GIVE_WAY_COMMIT_M
+    )  # standing at the line, behind the lead
+    assert np.all(tr.s_front[tr.at(20.0) : tr.at(26.0)] < LINE_S)  # waits for the priority car
+    assert tr.s_front[-1] > LINE_S + 20.0  # and goes once it has passed
 
 
 def test_slows_down_to_a_lower_speed_limit_ahead():
