@@ -59,9 +59,8 @@ _GIVE_WAY_COMMIT_M = 2.0  # [m] this close to a clear give-way line the driver c
 _STOPPED_MPS = 0.1  # [m/s] "full stop" at a stop sign
 _CREEP_MPS = 1.0  # [m/s] slower than this near a yield line counts as waiting there
 _WAIT_ZONE_M = 15.0  # [m] ... within this distance of the line (a queue in front of it included)
-_GO_HELD_S = (
-    1.0  # [s] standing this long after deciding to go at a yield line, the driver judges the gap again
-)
+# [s] standing this long after deciding to go at a yield line, the driver judges the gap again
+_GO_HELD_S = 1.0
 _FOLLOW_THROUGH_M = 12.0  # [m] a leader whose rear is at most this far past the line has just entered
 _CROSSING_MARGIN_M = 1.0  # [m] the driver stops this short of a crossing car's way
 _LEADER_ACCEL_SMOOTH_S = 0.3  # [s] smoothing of the perceived leader acceleration

@@ -418,11 +418,11 @@ class Demand:
 
 
 POOL_ROUTES_PER_ORIGIN = 4
-# destinations drawn per origin, of which the first POOL_ROUTES_PER_ORIGIN reached without passing a junction
-# twice are kept: a car leaves its parking spot towards where it is going. Every destination as drawn, 20 %
-# of Krems' pool routes turned round (436 of 2155 came back along their origin street): the cars that turned
-# round Krems' roundabout 24746392 crossed 268939333 twice, and its minor road's queue held the experiment's
-# participants 90 s in every baseline (make experiment)
+# destinations drawn per origin, of which the first POOL_ROUTES_PER_ORIGIN reached without turning round
+# (``turns_round``) are kept: a car leaves its parking spot towards where it is going. Every destination as
+# drawn, 37 % of Krems' pool routes turned round (15 % now, most from streets into dead ends): the cars that
+# turned round Krems' roundabout 24746392 crossed 268939333 twice, and its minor road's queue held the
+# experiment's participants 90 s in every baseline (make experiment)
 POOL_DRAWS_PER_ORIGIN = 8
 POOL_MIN_EDGE_M = 20.0  # room to insert on an origin edge
 
