@@ -386,12 +386,7 @@ class LeadVehicle:
             platoon = queued or self.gap_m <= self.bridge.tls_max_gap_s(tls_id) * max(v_ego, 1.0)
             green_left = latest if platoon else earliest
             if queued:
-                # the discharge into the amber is a standing queue's: the participant driving up stops at
-                # an amber it can stop at (``cosim.driver.scripted``), and the lead, reckoning it 2 s into the
-                # amber, went on at the green's end with the participant 13 m behind at 6 m/s, who stopped
-                # (Helsinki 25345665, experiment P2 system_A)
-                extension = EXTENSION_OF_GREEN_S if v_ego < STAND_MPS else 0.0
-                self._stop_at_light = ego_s > green_left + extension
+                self._stop_at_light = ego_s > green_left + EXTENSION_OF_GREEN_S
             else:
                 self._stop_at_light = ego_s + LIGHT_MARGIN_S > green_left
         if state in "yY" and (standing or dist - STOP_BEFORE_M >= v_lead * v_lead / (2.0 * AMBER_DECEL_MPS2)):

@@ -190,24 +190,6 @@ def test_the_lead_stops_at_an_amber_it_can_stop_at_and_runs_one_it_cannot():
     assert not lead2.waiting
 
 
-def test_the_lead_counts_on_the_amber_only_for_an_ego_starting_up_behind_it():
-    """A standing queue discharges into the amber (HCM's 2-s extension); an ego driving up stops at an amber
-    it can stop at. Helsinki 25345665: the lead went on at the green's end with the ego 13 m behind at 6 m/s,
-    which stopped for the red."""
-    sim = fake_sim(gap_m=13.0, ego_speed=6.0)
-    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.3
-    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 1.5, "G"), 1.5  # the ego needs ~3 s to the line
-    lead = _lead(sim)
-    lead.step(sim.world)
-    assert lead.waiting  # it stops for the ego
-    sim2 = fake_sim(gap_m=2.0, ego_speed=0.0)  # standing right behind it: they start up together
-    sim2.world.speed_mps[sim2.world.slot_of[LEAD_ID]] = 0.0
-    sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 1.0, "G"), 4.0  # 2 s lost + ~3.3 s < 4 s + 2 s
-    lead2 = _lead(sim2)
-    lead2.step(sim2.world)
-    assert not lead2.waiting
-
-
 def test_the_lead_decides_again_when_the_ego_slows_down_before_a_green():
     sim = fake_sim(gap_m=30.0, ego_speed=8.0)
     sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
