@@ -69,9 +69,6 @@ START_UP_LOST_S = 2.0
 # too short, cycle after cycle (Munich, experiment P1: 120 s, a permissive green before it too busy) [s]
 EXTENSION_OF_GREEN_S = 2.0
 STOP_DECEL_MPS2 = 2.0  # the lead's planned deceleration when it stops for the ego at a green [m/s^2]
-AMBER_DECEL_MPS2 = (
-    3.0  # ... and at an amber (ITE's yellow-interval deceleration, cosim.driver.profiles) [m/s^2]
-)
 STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
 # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor, and a permissive
 # green (g: a left turn through oncoming traffic), where the lead going alone let the oncoming stream in
@@ -389,12 +386,7 @@ class LeadVehicle:
                 self._stop_at_light = ego_s > green_left + EXTENSION_OF_GREEN_S
             else:
                 self._stop_at_light = ego_s + LIGHT_MARGIN_S > green_left
-        if state in "yY" and (standing or dist - STOP_BEFORE_M >= v_lead * v_lead / (2.0 * AMBER_DECEL_MPS2)):
-            # an amber it can stop at, with the ego behind it: SUMO ran the lead through one, crawling 1 m
-            # short of the line at 1.8 m/s, and the participant 11 m behind stopped; the cars from the cross
-            # street turned in between them for the whole red (Helsinki 25345665, experiment P2 system_A)
-            return math.sqrt(2.0 * AMBER_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
-        if not self._stop_at_light or state in "rRuyY":  # red, or an amber it cannot stop at: SUMO's call
+        if not self._stop_at_light or state in "rRuyY":  # red or amber: SUMO stops the lead by itself
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 

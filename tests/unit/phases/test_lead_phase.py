@@ -173,23 +173,6 @@ def test_the_lead_stops_at_a_green_the_ego_would_miss():
     assert not lead2.waiting
 
 
-def test_the_lead_stops_at_an_amber_it_can_stop_at_and_runs_one_it_cannot():
-    """Helsinki 25345665 (experiment P2 system_A): crawling 1 m short of the line at 1.8 m/s when the light
-    turned amber, the lead went on (SUMO's call) and the participant 11 m behind stopped for the red."""
-    sim = fake_sim(gap_m=11.0, ego_speed=5.0)
-    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 1.8
-    sim.bridge.tls = ("J", 0, 2.0, "y")
-    lead = _lead(sim)
-    lead.step(sim.world)
-    assert lead.waiting and sim.bridge.caps[-1] == pytest.approx(math.sqrt(2 * 3.0 * 1.0))
-    sim2 = fake_sim(gap_m=11.0, ego_speed=10.0)
-    sim2.world.speed_mps[sim2.world.slot_of[LEAD_ID]] = 10.0  # 16.7 m to stop at 3 m/s^2: it goes on
-    sim2.bridge.tls = ("J", 0, 8.0, "y")
-    lead2 = _lead(sim2)
-    lead2.step(sim2.world)
-    assert not lead2.waiting
-
-
 def test_the_lead_decides_again_when_the_ego_slows_down_before_a_green():
     sim = fake_sim(gap_m=30.0, ego_speed=8.0)
     sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
