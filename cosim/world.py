@@ -125,10 +125,14 @@ class World:
             self.edge_names.append(edge_id)
         return code
 
+    def edge_of(self, slot: int) -> str:
+        """The SUMO edge id of the vehicle in ``slot`` ("" where unknown)."""
+        code = int(self.edge_code[slot])
+        return self.edge_names[code] if code >= 0 else ""
+
     def edges_of(self, slots: np.ndarray) -> list[str]:
         """The SUMO edge ids of the vehicles in ``slots`` ("" where unknown)."""
-        names = self.edge_names
-        return [names[c] if c >= 0 else "" for c in self.edge_code[slots].tolist()]
+        return [self.edge_of(slot) for slot in slots.tolist()]
 
     # -- views ---------------------------------------------------------------------------------------------
     def live(self) -> tuple[np.ndarray, list[str]]:

@@ -75,7 +75,7 @@ class Recorder:
                 "t_s": t, "step": step, "id": EGO_ID, "x_m": round(float(w.x_m[ego]), 3), "y_m": round(float(w.y_m[ego]), 3),
                 "heading_deg": round(float(w.heading_deg[ego]), 3), "speed_mps": round(float(w.speed_mps[ego]), 4),
                 "accel_mps2": round(float(w.accel_mps2[ego]), 4),
-                "edge": w.edge_names[w.edge_code[ego]] if w.edge_code[ego] >= 0 else "",
+                "edge": w.edge_of(ego),
                 "lane_index": int(w.lane_index[ego]), "lane_pos_m": round(float(w.lane_pos_m[ego]), 3),
                 "lateral_offset_m": round(float(w.lateral_offset_m[ego]), 3),
                 "on_road": bool(self.bridge.ego_on_road),

@@ -369,8 +369,7 @@ class EgoController:
             and (end == len(route) or self.path.limit_s[end] - s_front > 0.5 * SUMO_ROUTE_AHEAD_M)
         ):
             return True
-        code = w.edge_code[slot]
-        road = w.edge_names[code] if code >= 0 else ""
+        road = w.edge_of(slot)
         start = k if road == route[k] else self._start_in_junction(road, k)
         if start is None:
             return held  # in a junction, or off the route: SUMO's route cannot start here
@@ -820,8 +819,7 @@ class EgoController:
     def _on_a_passed_edge(self, w: World, slot: int, s_front: float) -> bool:
         """Whether SUMO has the twin on an edge the route passed before the one the ego is on (or has just
         left: SUMO may be a step behind), see FREE_MAPPING_M."""
-        code = w.edge_code[slot]
-        road = w.edge_names[code] if code >= 0 else ""
+        road = w.edge_of(slot)
         k = self.path.edge_index(s_front)
         if not road or road.startswith(":") or road in self.route[max(0, k - 1) : k + 1]:
             return False
