@@ -143,6 +143,8 @@ class LeadBridge(FoesBridge, Protocol):
 
     def tls_max_gap_s(self, tls_id: str) -> float: ...
 
+    def tls_detection(self, tls_id: str, link_index: int) -> tuple[float, float] | None: ...
+
     def next_link(self, vid: str, within_m: float = math.inf) -> tuple[str, float, str] | None: ...
 
     def follower(self, vid: str, distance_m: float) -> tuple[str, float] | None: ...
@@ -374,14 +376,7 @@ class LeadVehicle:
                 ego_s = self._ego_pulls_up_s(w, v_ego, dist)
             else:
                 ego_s = self._ego_to_line_m(w, dist) / max(v_ego, 1.0)
-            earliest, latest = self.bridge.tls_green_left_s(tls_id, link)
-            # an actuated green lasts while cars cross its detector at most max-gap apart: the lead's own
-            # platoon, the ego queued behind it or following within max-gap, holds it green to its longest.
-            # Reckoned to its earliest end, a green in extension ended "now" every step, and the lead stood
-            # at the line, its queue holding the green, until the green's longest ran out (Krems 71582001:
-            # 50 s, then a whole red; the ego 10 m behind, a car between them)
-            platoon = queued or self.gap_m <= self.bridge.tls_max_gap_s(tls_id) * max(v_ego, 1.0)
-            green_left = latest if platoon else earliest
+            green_left = self._green_left_for_the_pair(w, tls_id, link, v_lead, v_ego, dist, queued)
             if queued:
                 self._stop_at_light = ego_s > green_left + EXTENSION_OF_GREEN_S
             else:
@@ -390,16 +385,58 @@ class LeadVehicle:
             return None
         return math.sqrt(2.0 * STOP_DECEL_MPS2 * max(0.0, dist - STOP_BEFORE_M))
 
+    def _green_left_for_the_pair(self, w: World, tls_id: str, link: int, v_lead: float, v_ego: float,
+                                 lead_dist_m: float, queued: bool) -> float:  # fmt: skip
+        """How long the green at the lead's light lasts for the pair [s]. A gap-actuated green ends between
+        its earliest and its latest end (``tls_green_left_s``): SUMO extends it at each check while a vehicle
+        has crossed a green lane's detector within max-gap (``tls_detection``). Reckoned to its earliest
+        end, a green in extension ended "now" every step, and the lead stood at its line, a queue standing on
+        the detector holding the green, until its longest ran out (Krems 71582001: 50 s, then a whole red).
+        Reckoned to its latest whenever the ego followed within max-gap, the lead, standing at its line,
+        went for an ego 16 m behind at 7 m/s still 6 m short of the detector: the green ended 0.7 s later,
+        and the lead went through alone at the amber (Helsinki 25345665, drive benchmark P2 system_A).
+        So the detector's last vehicle holds the green max-gap after it, the lead and then the ego crossing
+        it before that runs out hold it on (to its latest: the cars behind keep coming), and past the
+        detector the ego holds nothing. A light without detectors of its own: the platoon rule (the ego
+        queued behind the lead or following within max-gap)."""
+        earliest, latest = self.bridge.tls_green_left_s(tls_id, link)
+        max_gap = self.bridge.tls_max_gap_s(tls_id)
+        detection = self.bridge.tls_detection(tls_id, link)
+        if detection is None:
+            return latest if queued or self.gap_m <= max_gap * max(v_ego, 1.0) else earliest
+        detector_m, since_s = detection  # the detector's distance before the line, its last vehicle
+        if since_s <= 0.0:  # a car on a detector (a queue standing on it) holds the green
+            return latest
+        held_s = max(earliest, max_gap - since_s)
+        lead_to_detector_m = lead_dist_m - detector_m
+        if lead_to_detector_m > 0.0:
+            lead_at_s = lead_to_detector_m / max(v_lead, 1.0)
+            if lead_at_s > held_s:
+                return held_s
+            held_s = lead_at_s + max_gap
+        ego_to_detector_m = self._ego_to_line_m(w, lead_dist_m) - detector_m
+        if ego_to_detector_m <= 0.0:
+            return held_s
+        if queued:
+            ego_at_s = self._ego_pulls_up_s(w, v_ego, lead_dist_m, short_of_line_m=detector_m)
+        else:
+            ego_at_s = ego_to_detector_m / max(v_ego, 1.0)
+        return latest if ego_at_s <= held_s else held_s
+
     def _ego_to_line_m(self, w: World, lead_dist_m: float) -> float:
         """The ego's front to the stop line ``lead_dist_m`` ahead of the lead [m]."""
         return lead_dist_m + float(w.length_m[w.slot_of[LEAD_ID]]) + max(self.gap_m, 0.0)
 
-    def _ego_pulls_up_s(self, w: World, v_ego: float, lead_dist_m: float) -> float:
-        """When the ego, queued behind the lead, reaches the stop line ``lead_dist_m`` ahead of the lead if it
-        goes now [s]: speeding up (EGO_PULL_AWAY_MPS2), after the start-up lost time when it stands."""
+    def _ego_pulls_up_s(
+        self, w: World, v_ego: float, lead_dist_m: float, short_of_line_m: float = 0.0
+    ) -> float:
+        """When the ego, queued behind the lead, reaches the stop line ``lead_dist_m`` ahead of the lead (or
+        a point ``short_of_line_m`` before it) if it goes now [s]: speeding up (EGO_PULL_AWAY_MPS2), after the
+        start-up lost time when it stands."""
         limit = max(v_ego, self.bridge.lane_speed_limit(LEAD_ID))
         lost = START_UP_LOST_S if v_ego < STAND_MPS else 0.0
-        return lost + pull_away_arrival(v_ego, limit, self._ego_to_line_m(w, lead_dist_m))[0]
+        ego_m = self._ego_to_line_m(w, lead_dist_m) - short_of_line_m
+        return lost + pull_away_arrival(v_ego, limit, ego_m)[0]
 
     def _yield_cap(self, w: World) -> float | None:
         """Speed cap that holds the lead at a yield line until the ego is right behind it and the gap in the

@@ -162,6 +162,9 @@ class SumoBridge:
         self._removed: list[str] = []  # removed by cosim this step
         self._tls_logics: dict[tuple[str, str], list[tuple[float, float, str]] | None] = {}
         self._tls_max_gaps: dict[str, float] = {}
+        # light -> (link index -> its lane's detector distance before the stop line [m], (detector, links of
+        # its lane) per detector); None: no detectors of its own (not gap-actuated)
+        self._tls_detectors: dict[str, tuple[dict[int, float], list[tuple[str, list[int]]]] | None] = {}
         self._incoming: dict[str, list[tuple[str, str, float]]] | None = None  # lane -> lanes into it
         self._lc_mode_before: dict[str, int] = {}  # vehicle -> its lane-change mode while keep_lane forces
 
@@ -604,6 +607,46 @@ class SumoBridge:
             value = self._sumo.trafficlight.getParameter(tls_id, "max-gap")
             self._tls_max_gaps[tls_id] = float(value) if value else ACTUATED_MAX_GAP_S
         return self._tls_max_gaps[tls_id]
+
+    def tls_detection(self, tls_id: str, link_index: int) -> tuple[float, float] | None:
+        """(how far before the stop line the detector of the link's lane lies [m], time since a detector of
+        one of the light's lanes whose links are all green now last saw a vehicle [s], 0 while one is on it)
+        for a gap-actuated light: at each check SUMO extends the green while that time is below ``max-gap``
+        (Simulation/Traffic_Lights, "Actuated Traffic Lights"; MSActuatedTrafficLightLogic::init uses a lane's
+        detector for a phase only when all the lane's links are green in it). None for a light without
+        detectors of its own, or a lane whose detector SUMO placed on the lane before it."""
+        if tls_id not in self._tls_detectors:
+            self._tls_detectors[tls_id] = self._find_tls_detectors(tls_id)
+        found = self._tls_detectors[tls_id]
+        if found is None or link_index not in found[0]:
+            return None
+        ahead_of_line, detectors = found
+        state = self._sumo.trafficlight.getRedYellowGreenState(tls_id)
+        loop = self._sumo.inductionloop
+        since = min(
+            (loop.getTimeSinceDetection(d) for d, links in detectors if all(state[k] in "Gg" for k in links)),
+            default=math.inf,
+        )
+        return ahead_of_line[link_index], since
+
+    def _find_tls_detectors(self, tls_id: str) -> tuple[dict[int, float], list[tuple[str, list[int]]]] | None:
+        """The detectors SUMO built for the light (ids ``<light>_<programme>_D<phase>.<lane>``) on the lanes
+        it controls, by link; None when it has none."""
+        links_of: dict[str, list[int]] = {}
+        for k, links in enumerate(self._sumo.trafficlight.getControlledLinks(tls_id)):
+            if links:
+                links_of.setdefault(links[0][0], []).append(k)
+        loop = self._sumo.inductionloop
+        ahead_of_line: dict[int, float] = {}
+        detectors = []
+        for d in loop.getIDList():
+            lane = loop.getLaneID(d) if d.startswith(tls_id + "_") else None
+            if lane not in links_of:
+                continue
+            detectors.append((d, links_of[lane]))
+            for k in links_of[lane]:
+                ahead_of_line[k] = self._sumo.lane.getLength(lane) - loop.getPosition(d)
+        return (ahead_of_line, detectors) if detectors else None
 
     def _tls_logic(self, tls_id: str, program: str) -> list[tuple[float, float, str]] | None:
         """(shortest [s], longest [s], state) of each phase of the programme: minDur and maxDur for an

@@ -146,7 +146,7 @@ def test_an_actuated_greens_end_lies_between_the_bounds_the_bridge_gives(tmp_pat
         link = next(k for k, links in enumerate(libsumo.trafficlight.getControlledLinks(tls))
                     if links and links[0][0].startswith(e_in) and links[0][1].startswith(e_out))  # fmt: skip
         world = World(128)
-        bounds, began, ended, was_green = [], None, None, True
+        bounds, detections, began, ended, was_green = [], [], None, None, True
         for _ in range(3000):
             bridge.step(world)
             t = libsumo.simulation.getTime()
@@ -160,7 +160,22 @@ def test_an_actuated_greens_end_lies_between_the_bounds_the_bridge_gives(tmp_pat
                 ended = t
                 break
             bounds.append((t, *bridge.tls_green_left_s(tls, link)))
+            detections.append(bridge.tls_detection(tls, link))
         assert ended is not None, "the green ended"
+        # SUMO puts the detector detector-gap (2 s) of travel at the speed limit before the line, closer when
+        # a short minDur would not clear the cars between (MSActuatedTrafficLightLogic::init: passing time
+        # 1.9 s per 7.5 m); beyond minDur the green goes on while its last car crossed the detector less than
+        # max-gap ago, and ends at the next check (each second) once that car is max-gap old
+        lane = libsumo.trafficlight.getControlledLinks(tls)[link][0][0]
+        min_dur = min(p.minDur for p in logic.phases if p.state[link] in "Gg")
+        expected_m = min(2.0 * libsumo.lane.getMaxSpeed(lane), (min_dur / 1.9 + 0.5) * 7.5)
+        assert all(d is not None and d[0] == pytest.approx(expected_m, abs=0.01) for d in detections)
+        gapped_out = [
+            t
+            for (t, *_), d in zip(bounds, detections, strict=True)
+            if t - began >= min_dur and d[1] >= ACTUATED_MAX_GAP_S
+        ]
+        assert gapped_out and all(ended - t <= 1.0 + 1e-6 for t in gapped_out), (gapped_out, ended)
         for t, earliest, latest in bounds:
             assert earliest - 0.1 <= ended - t <= latest + 0.1, (t, earliest, latest, ended)
         first_min = bounds[0][1]

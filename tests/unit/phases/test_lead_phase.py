@@ -31,6 +31,7 @@ class FakeBridge:
         self.other_caps: dict[str, float | None] = {}
         self.tls = None  # (id, link, dist, state)
         self.green_left_s = math.inf
+        self.detection: tuple[float, float] | None = None  # (detector before the line [m], since a car [s])
         self.link = None  # (state, dist, direction)
         self.foes: list[tuple[str, float, float, float, bool]] = []
         self.diverted: list[tuple[str, set]] = []
@@ -64,6 +65,9 @@ class FakeBridge:
 
     def tls_max_gap_s(self, tls_id):
         return 3.0
+
+    def tls_detection(self, tls_id, link):
+        return self.detection
 
     def next_link(self, vid, within_m=math.inf):
         return self.link if self.link is None or self.link[1] <= within_m else None
@@ -209,13 +213,15 @@ def test_the_lead_standing_at_a_green_goes_when_the_ego_queued_behind_it_makes_t
         assert _standing_at_a_green_with_the_ego_queued(green_left_s).waiting == waits, green_left_s
 
 
-def _standing_at_a_green_with_the_ego_queued(green_left_s) -> LeadVehicle:
+def _standing_at_a_green_with_the_ego_queued(green_left_s, detection=None, gap_m=10.0, ego_speed=0.0):
     """The lead after one step standing at its line, where it had stopped for the ego, at a green with
-    ``green_left_s`` to go (or (earliest, latest)), the ego queued 10 m behind it."""
-    sim = fake_sim(gap_m=10.0, ego_speed=0.0)
+    ``green_left_s`` to go (or (earliest, latest)), the ego queued 10 m behind it (or ``gap_m`` at
+    ``ego_speed``); ``detection``: the light's detector (distance before the line, time since a car)."""
+    sim = fake_sim(gap_m=gap_m, ego_speed=ego_speed)
     sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 0.0
     # standing where SUMO stopped it for its cap: a hair short of STOP_BEFORE_M (Krems: 0.994 m)
     sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 0.994, "G"), green_left_s
+    sim.bridge.detection = detection
     lead = _lead(sim)
     lead._stop_at_light, lead._light = True, ("J", 0, True)
     lead.step(sim.world)
@@ -237,6 +243,27 @@ def test_at_an_actuated_green_the_lead_counts_on_its_extension_only_while_its_pl
         lead = _lead(sim)
         lead.step(sim.world)
         assert lead.waiting == waits, gap_m
+
+
+def test_at_an_actuated_green_the_lead_reckons_with_the_detector_that_extends_it():
+    """Helsinki 25345665 (drive benchmark, P2 system_A): the lead stood at its line for the ego, 16.8 m
+    behind at 7 m/s, and went, counting on the ego to hold the actuated green; the ego was still 6 m short of
+    the detector (16.7 m before the line) when the green gapped out 0.7 s later (its last car 3 s before),
+    and the lead went through alone at the amber. A car on a detector, or the ego crossing it before the
+    green's next check, holds it; a queue standing between the detector and the line does not."""
+    extension, detector_m = (0.6, 43.6), 16.66
+
+    def waits(since_s, gap_m=16.8, ego_speed=7.0):
+        detection = (detector_m, since_s)
+        return _standing_at_a_green_with_the_ego_queued(extension, detection, gap_m, ego_speed).waiting
+
+    assert waits(since_s=3.03)  # the ego reaches the detector in 0.9 s, after the green's check at 0.6 s
+    assert not waits(since_s=0.5)  # the last car holds it 2.5 s: the ego crosses the detector in time
+    assert not waits(since_s=0.0)  # a car on a detector holds it
+    # queued 10 m behind the lead and standing, both between the detector and the line: nothing holds it ...
+    assert waits(since_s=5.0, gap_m=10.0, ego_speed=0.0)
+    # ... unless the queue behind them stands on the detector (Krems 71582001: 50 s of green)
+    assert not waits(since_s=0.0, gap_m=10.0, ego_speed=0.0)
 
 
 def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_suits_both():
