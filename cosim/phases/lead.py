@@ -68,6 +68,7 @@ START_UP_LOST_S = 2.0
 # green with a margin, the lead standing at its line with the ego 1.7 m behind found a 6-s protected green
 # too short, cycle after cycle (Munich, experiment P1: 120 s, a permissive green before it too busy) [s]
 EXTENSION_OF_GREEN_S = 2.0
+DETECTOR_CARS_MAX = 8  # the cars ahead of the lead reckoned with as they cross a light's detector
 STOP_DECEL_MPS2 = 2.0  # the lead's planned deceleration when it stops for the ego at a green [m/s^2]
 STOP_BEFORE_M = 1.0  # it stops this far before the stop line [m]
 # SUMO link states where the lead must yield: stop, all-way stop, right-before-left, minor, and a permissive
@@ -395,10 +396,10 @@ class LeadVehicle:
         Reckoned to its latest whenever the ego followed within max-gap, the lead, standing at its line,
         went for an ego 16 m behind at 7 m/s still 6 m short of the detector: the green ended 0.7 s later,
         and the lead went through alone at the amber (Helsinki 25345665, drive benchmark P2 system_A).
-        So the detector's last vehicle holds the green max-gap after it, the lead and then the ego crossing
-        it before that runs out hold it on (to its latest: the cars behind keep coming), and past the
-        detector the ego holds nothing. A light without detectors of its own: the platoon rule (the ego
-        queued behind the lead or following within max-gap)."""
+        So the detector's last vehicle holds the green max-gap after it, the cars ahead of the lead, the lead
+        and then the ego crossing it before that runs out hold it on (to its latest: the cars behind keep
+        coming), and past the detector the ego holds nothing. A light without detectors of its own: the
+        platoon rule (the ego queued behind the lead or following within max-gap)."""
         earliest, latest = self.bridge.tls_green_left_s(tls_id, link)
         max_gap = self.bridge.tls_max_gap_s(tls_id)
         detection = self.bridge.tls_detection(tls_id, link)
@@ -409,11 +410,13 @@ class LeadVehicle:
             return latest
         held_s = max(earliest, max_gap - since_s)
         lead_to_detector_m = lead_dist_m - detector_m
-        if lead_to_detector_m > 0.0:
-            lead_at_s = lead_to_detector_m / max(v_lead, 1.0)
-            if lead_at_s > held_s:
-                return held_s
-            held_s = lead_at_s + max_gap
+        if lead_to_detector_m > 0.0:  # the cars ahead of it, then the lead, cross the detector
+            crossing = [*self._cars_to_detector(w, lead_to_detector_m), (lead_to_detector_m, v_lead)]
+            for to_detector_m, v in crossing:
+                at_s = to_detector_m / max(v, 1.0)
+                if at_s > held_s:
+                    return held_s
+                held_s = at_s + max_gap
         ego_to_detector_m = self._ego_to_line_m(w, lead_dist_m) - detector_m
         if ego_to_detector_m <= 0.0:
             return held_s
@@ -422,6 +425,24 @@ class LeadVehicle:
         else:
             ego_at_s = ego_to_detector_m / max(v_ego, 1.0)
         return latest if ego_at_s <= held_s else held_s
+
+    def _cars_to_detector(self, w: World, lead_to_detector_m: float) -> list[tuple[float, float]]:
+        """(front's distance to the detector [m], speed [m/s]) of the cars ahead of the lead in its lane that
+        have yet to cross the detector ``lead_to_detector_m`` ahead of its front, nearest the detector first:
+        a queue discharging ahead of the lead holds the green for it."""
+        found: list[tuple[float, float]] = []
+        vid, ahead_m = LEAD_ID, 0.0
+        while len(found) < DETECTOR_CARS_MAX:
+            nxt = self.bridge.leader(vid, lead_to_detector_m - ahead_m)
+            slot = w.slot_of.get(nxt[0]) if nxt is not None else None
+            if slot is None:
+                break
+            ahead_m += nxt[1] + float(w.length_m[slot])
+            if ahead_m >= lead_to_detector_m:
+                break
+            found.append((lead_to_detector_m - ahead_m, float(w.speed_mps[slot])))
+            vid = nxt[0]
+        return found[::-1]
 
     def _ego_to_line_m(self, w: World, lead_dist_m: float) -> float:
         """The ego's front to the stop line ``lead_dist_m`` ahead of the lead [m]."""

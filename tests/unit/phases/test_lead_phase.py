@@ -266,6 +266,27 @@ def test_at_an_actuated_green_the_lead_reckons_with_the_detector_that_extends_it
     assert not waits(since_s=0.0, gap_m=10.0, ego_speed=0.0)
 
 
+def test_approaching_an_actuated_green_the_lead_counts_on_the_cars_ahead_of_it_to_hold_it():
+    """A car ahead of the lead crosses the detector first and holds the green for the lead, and the lead
+    for the ego; alone, the lead reaches the detector after the green's next check and stops for the ego."""
+    outcomes = []
+    for car_ahead in (False, True):
+        sim = fake_sim(gap_m=15.0, ego_speed=8.0)
+        sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
+        # 40 m before the line; the detector 16.66 m before it, its last car 1 s ago: held 2 s; the lead
+        # reaches it in 2.9 s, the ego (40 + 5 + 15 - 16.66 m at 8 m/s) in 5.4 s
+        sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 40.0, "G"), (0.5, 30.0)
+        sim.bridge.detection = (16.66, 1.0)
+        if car_ahead:  # 10 m ahead of the lead at 8 m/s: 8.3 m short of the detector, there in 1 s
+            s = sim.world.add("ahead")
+            sim.world.length_m[s], sim.world.speed_mps[s] = 5.0, 8.0
+            sim.bridge.leaders[LEAD_ID] = ("ahead", 10.0)
+        lead = _lead(sim)
+        lead.step(sim.world)
+        outcomes.append(lead.waiting)
+    assert outcomes == [True, False]
+
+
 def test_the_lead_holds_at_a_give_way_line_until_the_ego_is_close_and_the_gap_suits_both():
     sim = fake_sim(gap_m=25.0, ego_speed=5.0)
     sim.bridge.link = ("m", 10.0, "s")
