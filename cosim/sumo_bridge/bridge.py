@@ -630,17 +630,18 @@ class SumoBridge:
         return ahead_of_line[link_index], since
 
     def _find_tls_detectors(self, tls_id: str) -> tuple[dict[int, float], list[tuple[str, list[int]]]] | None:
-        """The detectors SUMO built for the light (ids ``<light>_<programme>_D<phase>.<lane>``) on the lanes
-        it controls, by link; None when it has none."""
+        """The detectors SUMO built for the light's programme (ids ``<light>_<programme>_D<edge>.<lane>``,
+        MSActuatedTrafficLightLogic::init) on the lanes it controls, by link; None when it has none."""
         links_of: dict[str, list[int]] = {}
         for k, links in enumerate(self._sumo.trafficlight.getControlledLinks(tls_id)):
             if links:
                 links_of.setdefault(links[0][0], []).append(k)
         loop = self._sumo.inductionloop
+        prefix = f"{tls_id}_{self._sumo.trafficlight.getProgram(tls_id)}_D"
         ahead_of_line: dict[int, float] = {}
         detectors = []
         for d in loop.getIDList():
-            lane = loop.getLaneID(d) if d.startswith(tls_id + "_") else None
+            lane = loop.getLaneID(d) if d.startswith(prefix) else None
             if lane not in links_of:
                 continue
             detectors.append((d, links_of[lane]))
