@@ -394,7 +394,7 @@ class LeadVehicle:
         end, a green in extension ended "now" every step, and the lead stood at its line, a queue standing on
         the detector holding the green, until its longest ran out (Krems 71582001: 50 s, then a whole red).
         Reckoned to its latest whenever the ego followed within max-gap, the lead, standing at its line,
-        went for an ego 16 m behind at 7 m/s still 6 m short of the detector: the green ended 0.7 s later,
+        went for an ego 16 m behind at 7 m/s still 6 m short of the detector: the green ended 0.6 s later,
         and the lead went through alone at the amber (Helsinki 25345665, drive benchmark P2 system_A).
         So the detector's last vehicle holds the green max-gap after it, the cars ahead of the lead, the lead
         and then the ego crossing it before that runs out hold it on (to its latest: the cars behind keep

@@ -248,7 +248,7 @@ def test_at_an_actuated_green_the_lead_counts_on_its_extension_only_while_its_pl
 def test_at_an_actuated_green_the_lead_reckons_with_the_detector_that_extends_it():
     """Helsinki 25345665 (drive benchmark, P2 system_A): the lead stood at its line for the ego, 16.8 m
     behind at 7 m/s, and went, counting on the ego to hold the actuated green; the ego was still 6 m short of
-    the detector (16.7 m before the line) when the green gapped out 0.7 s later (its last car 3 s before),
+    the detector (16.7 m before the line) when the green gapped out 0.6 s later (its last car 3 s before),
     and the lead went through alone at the amber. A car on a detector, or the ego crossing it before the
     green's next check, holds it; a queue standing between the detector and the line does not."""
     extension, detector_m = (0.6, 43.6), 16.66
