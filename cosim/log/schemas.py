@@ -160,10 +160,11 @@ HEALTH = _obj(
      "longest_standstill_s": NUM, "longest_standstill_not_red_s": NUM, "stalls": INT,
      "following_share": nullable(NUM), "lead_leader_share": nullable(NUM), "cut_ins": nullable(INT),
      "collisions": INT, "ego_collisions": INT, "teleports": INT, "vehicles_departed": INT,
-     "teleport_share": NUM, "problems": {"type": "array", "items": {"type": STR}},
-     "status": string_enum("ok", "degraded")},
+     "teleport_share": NUM, "ego_off_road": INT, "off_road_s": NUM,
+     "problems": {"type": "array", "items": {"type": STR}}, "status": string_enum("ok", "degraded")},
     description="The drive's health over the whole run: ego presence and distance, standstills, following, "
-                "cut-ins, collisions, teleports; status 'degraded' with the problems found.",
+                "cut-ins, collisions, teleports, time off the road; status 'degraded' with the problems "
+                "found.",
 )  # fmt: skip
 
 SCENE_UPDATE = foxglove_schemas.stored("foxglove.SceneUpdate")

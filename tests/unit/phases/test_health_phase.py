@@ -78,3 +78,20 @@ def test_the_lead_share_takes_the_leads_word_on_whom_the_ego_follows():
     alone = DriveHealth(EgoConfig(), 0.1)
     _drive(alone, w, 40.0, 8.0, beside, [])
     assert alone.report()["lead_leader_share"] == 0.0
+
+
+def test_time_off_the_road_is_counted_and_only_a_real_excursion_degrades_the_drive():
+    """``cosim.sumo_bridge`` reports ``ego_off_road`` when the ego's pose stays off every lane and
+    ``ego_on_road`` when it is back: a corner cut short (0.3 s) is counted, not judged; seconds off the
+    road are no longer the task."""
+    health = DriveHealth(EgoConfig(), 0.1)
+    w = World(capacity=4)
+    w.add(EGO_ID, is_ego=True)
+    off, on = SumoEvent("ego_off_road", EGO_ID), SumoEvent("ego_on_road", EGO_ID)
+    _drive(health, w, 40.0, 8.0, _percept(), [], events_at={100: [off], 103: [on], 300: [off], 330: [on]})
+    rep = health.report()
+    assert rep["ego_off_road"] == 2 and math.isclose(rep["off_road_s"], 3.3)
+    assert rep["status"] == "degraded" and any("off the road for 3.3 s" in p for p in rep["problems"])
+    brief = health.report(0.0, 20.0)  # only the corner cut short
+    assert brief["ego_off_road"] == 1 and math.isclose(brief["off_road_s"], 0.3)
+    assert not any("off the road" in p for p in brief["problems"])
