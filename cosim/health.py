@@ -193,7 +193,7 @@ class DriveHealth:
             "vehicles_departed": departed,
             "teleport_share": round(count["teleport"] / departed, 4) if departed else 0.0,
             "ego_off_road": count["ego_off_road"],
-            "off_road_s": round(float(np.count_nonzero(np.asarray(self.off_road, dtype=bool)[m])) * step_s, 1),
+            "off_road_s": round(float(np.asarray(self.off_road, dtype=bool)[m].sum()) * step_s, 1),
         }
         rep["problems"] = self._problems(rep, t0, route_ended=count["route_end"] > 0)
         rep["status"] = "degraded" if rep["problems"] else "ok"
@@ -227,7 +227,9 @@ class DriveHealth:
                     f"the lead car was the ego's leader only {rep['lead_leader_share']:.0%} of the time"
                 )
         if rep["off_road_s"] > MAX_OFF_ROAD_S:
-            out.append(f"the ego was off the road for {rep['off_road_s']:.1f} s (see the ego_off_road events)")
+            out.append(
+                f"the ego was off the road for {rep['off_road_s']:.1f} s (see the ego_off_road events)"
+            )
         if rep["ego_collisions"]:
             out.append(f"{rep['ego_collisions']} collision(s) of the ego")
         if rep["collisions"] - rep["ego_collisions"]:
