@@ -62,6 +62,82 @@ def cache_dir() -> Path:
     return Path(os.environ.get("COSIM_CACHE_DIR") or Path.home() / ".cache" / "cosim")
 
 
+# the cache keeps this many scenarios ($COSIM_CACHE_MAX_SCENARIOS): a sweep builds one per seed and density,
+# 5-7 MB each on the benchmark maps, so without a bound it grows by gigabytes. Beyond it the scenarios unused
+# longest go, and networks no scenario kept refers to, with their routes in the route table
+CACHE_MAX_SCENARIOS = 200
+# ... but never one used within this time: an experiment's participants and a replay read a scenario long
+# after it was built or last looked up [s]
+CACHE_KEEP_S = 86400.0
+
+
+def _touch(path: Path) -> None:
+    """Mark a cache entry used now (its last use orders the eviction)."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass  # evicted meanwhile, or a read-only cache: nothing to order
+
+
+def evict_stale(root: Path, keep: frozenset[str] = frozenset(), now: float | None = None) -> list[str]:
+    """Remove the scenarios unused longest beyond CACHE_MAX_SCENARIOS (never ``keep``, never one used within
+    CACHE_KEEP_S), then networks no remaining scenario refers to, unused as long, and their routes. Safe
+    beside other processes: an entry leaves by an atomic rename before it is deleted. Returns the keys
+    removed."""
+    limit = int(os.environ.get("COSIM_CACHE_MAX_SCENARIOS") or CACHE_MAX_SCENARIOS)
+    now = time.time() if now is None else now
+    entries = []
+    for d in (root / "scenarios").glob("*/report.json"):
+        try:
+            entries.append((d.stat().st_mtime, d.parent))
+        except OSError:
+            continue
+    entries.sort()
+    removed, left = [], len(entries)
+    for used, d in entries:
+        if left <= limit:
+            break
+        if d.name in keep or now - used < CACHE_KEEP_S:
+            continue
+        if _discard(d, root):
+            removed.append(d.name)
+            left -= 1
+    if not removed:
+        return removed
+    needed = set()
+    for d in (root / "scenarios").glob("*/report.json"):
+        try:
+            needed.add(json.loads(d.read_text())["cache"]["network_key"])
+        except (OSError, ValueError, KeyError):
+            continue
+    gone = []
+    for n in (root / "networks").glob("*/network.json"):
+        try:
+            stale = n.parent.name not in needed and now - n.stat().st_mtime >= CACHE_KEEP_S
+        except OSError:
+            continue
+        if stale and _discard(n.parent, root):
+            gone.append(n.parent.name)
+    if gone and (root / "routes.sqlite").exists():
+        table = RouteTable(root / "routes.sqlite", "")
+        try:
+            table.forget(gone)
+        finally:
+            table.close()
+    return removed + gone
+
+
+def _discard(d: Path, root: Path) -> bool:
+    """Take a cache entry out of view (atomically) and delete it; False when another process was first."""
+    trash = root / f".evicted-{d.name}-{os.getpid()}"
+    try:
+        os.replace(d, trash)
+    except OSError:
+        return False
+    shutil.rmtree(trash, ignore_errors=True)
+    return True
+
+
 def _sha256(path: Path) -> str:
     h = hashlib.sha256()
     with path.open("rb") as fh:
@@ -215,11 +291,15 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
     scn_key = _key(net_key, to_dict(demand), to_dict(config.behaviour), seed)
     scn_dir = root / "scenarios" / scn_key
     cached = (scn_dir / "report.json").exists()  # only complete, valid builds are ever published
-    if not cached:
+    if cached:
+        _touch(scn_dir / "report.json")
+    else:
         osm = read_osm(osm_path)  # validates: truncated / not OSM / no roads -> CosimError
         net_dir = root / "networks" / net_key
         net_hit = (net_dir / "network.json").exists()
-        if not net_hit:
+        if net_hit:
+            _touch(net_dir / "network.json")
+        else:
             tmp = Path(tempfile.mkdtemp(prefix="net-", dir=_mkdir(root)))
             try:
                 _build_network_dir(osm, config.behaviour, tmp)
@@ -270,6 +350,7 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
             _publish(tmp, scn_dir)
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
+        evict_stale(root, keep=frozenset({scn_key}))
     report = json.loads((scn_dir / "report.json").read_text())
     report["build_s"] = round(time.perf_counter() - t_start, 2)
     report["scenario_cache"] = "hit" if cached else "built"

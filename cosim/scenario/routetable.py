@@ -33,6 +33,11 @@ class RouteTable:
     def close(self) -> None:
         self._db.close()
 
+    def forget(self, net_hashes: Iterable[str]) -> None:
+        """Delete the routes of networks no longer cached (SQLite reuses their pages; the file stops growing)."""
+        with self._db:
+            self._db.executemany("DELETE FROM routes WHERE net=?", [(h,) for h in net_hashes])
+
     def lookup(self, pairs: Iterable[tuple[str, str]]) -> dict[tuple[str, str], tuple[str, ...] | None]:
         """Stored routes for the pairs that have one (None = stored as unreachable)."""
         found: dict[tuple[str, str], tuple[str, ...] | None] = {}
