@@ -14,8 +14,10 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q -e '.[dev]'
 	touch $@
 
+# one worker per core, each test file whole on one worker (its module fixtures build a map once); the
+# workers share one scenario cache (tests/conftest.py)
 test: $(STAMP)
-	$(PY) -m pytest -q -ra
+	$(PY) -m pytest -q -ra -n auto --dist loadfile
 
 test-fast: $(STAMP)
 	$(PY) -m pytest -q -ra -m 'not slow'

@@ -12,6 +12,11 @@ def _cache_dir(tmp_path_factory):
     """Tests share one cache (built networks, route table), never the user's."""
     if "COSIM_TEST_CACHE" in os.environ:
         path = Path(os.environ["COSIM_TEST_CACHE"])
+    elif os.environ.get("COSIM_TEST_CHILD") and os.environ.get("COSIM_CACHE_DIR"):
+        path = Path(os.environ["COSIM_CACHE_DIR"])  # an own_process test: its parent's cache, maps built once
+    elif "PYTEST_XDIST_WORKER" in os.environ:  # one cache for all workers of the run: a map is built once
+        path = tmp_path_factory.getbasetemp().parent / "cosim-cache"  # (concurrent builds publish atomically)
+        path.mkdir(exist_ok=True)
     else:
         path = tmp_path_factory.mktemp("cosim-cache")
     os.environ["COSIM_CACHE_DIR"] = str(path)
