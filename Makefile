@@ -14,13 +14,13 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q -e '.[dev]'
 	touch $@
 
-# one worker per core, each test file whole on one worker (its module fixtures build a map once); the
-# workers share one scenario cache (tests/conftest.py)
+# one worker per core (both targets), each test file whole on one worker (its module fixtures build a map
+# once); the workers share one scenario cache (tests/conftest.py)
 test: $(STAMP)
 	$(PY) -m pytest -q -ra -n auto --dist loadfile
 
 test-fast: $(STAMP)
-	$(PY) -m pytest -q -ra -m 'not slow'
+	$(PY) -m pytest -q -ra -m 'not slow' -n auto --dist loadfile
 
 # --force: a second `make experiment` replaces results/paper (cosim refuses to overwrite a run without it)
 experiment: $(STAMP)
