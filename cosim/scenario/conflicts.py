@@ -411,6 +411,59 @@ def crossing_merge_deletions(net_file: Path) -> tuple[list[str], list[tuple]]:
     return lines, report
 
 
+# AASHTO's passenger-car design vehicle turns on a 7.3-m minimum radius (A Policy on Geometric Design of
+# Highways and Streets, 2011, Table 2-2b): a movement that reverses its heading closer to where it began than
+# that circle's diameter is a loop no car can drive [m]
+TURNING_CIRCLE_M = 2 * 7.3
+# two paths from one lane have parted once they are this far apart, and meet again this close [m]
+PARTED_M, MET_M = 1.0, 0.3
+
+
+def _parts_and_meets(a, b) -> bool:
+    """Whether line ``a``, starting where ``b`` starts, parts from ``b`` and comes back onto it."""
+    import shapely.ops
+
+    s = 0.0
+    while s < a.length and a.interpolate(s).distance(b) <= PARTED_M:
+        s += 0.5
+    return s < a.length and shapely.ops.substring(a, s, a.length).distance(b) < MET_M
+
+
+def looping_turn_deletions(net_file: Path) -> tuple[list[str], list[tuple[str, str, str]]]:
+    """``<delete>`` lines for turns that reverse the heading within a turning circle (``TURNING_CIRCLE_M``,
+    U_TURN_DEG) and loop across another movement from the same lane.
+
+    SUMO never holds two movements from one lane apart: the car behind goes on its way while the one ahead
+    loops back over it. graphhopper's north-bayreuth extract, cluster_21636285_331939793: the "right" from
+    39407891#2 into -155200273 turns 162 deg between lane ends 8.6 m apart, through a 24-m loop over the
+    straight movement's path, and the next car straight on hit the turning one (cosim seed 1 and plain SUMO
+    seed 2). Where the target road has another way in; the turns a car can drive (a U-turn round a wide
+    median) and netconvert's own turnarounds (``turnaround_deletions``) are left alone. Returns the lines
+    and (junction, from lane, to lane)."""
+    import shapely
+
+    shapes, junctions, _ = _read(net_file)
+    lines, report = [], []
+    for jid, conns, _foes in junctions:
+        unique = list({id(c): c for c in conns if c is not None}.values())
+        inner = {id(c): shapely.LineString([p for lane in c.chain for p in shapes[lane]]) for c in unique}
+        ways_in = {(c.from_edge, c.to_edge) for c in unique}
+        for c in unique:
+            a, b = shapes[c.from_lane], shapes[c.to_lane]
+            if c.direction == "t" or len(a) < 2 or len(b) < 2 or _osm_way(c.from_edge) == _osm_way(c.to_edge):
+                continue
+            if _heading_change_deg(a, b) <= U_TURN_DEG or math.dist(a[-1], b[0]) >= TURNING_CIRCLE_M:
+                continue
+            if not any(f != c.from_edge for f, t in ways_in if t == c.to_edge):
+                continue  # the only way into the target road
+            siblings = [o for o in unique if o is not c and o.from_lane == c.from_lane]
+            if any(_parts_and_meets(inner[id(c)], inner[id(o)]) or _parts_and_meets(inner[id(o)], inner[id(c)])
+                   for o in siblings):  # fmt: skip
+                lines.append(_delete_line(c))
+                report.append((jid, c.from_lane, c.to_lane))
+    return lines, report
+
+
 def overlapping_end_deletions(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M):
     """``<delete>`` lines for movements whose lane into a junction lies on top of another movement's lane out.
 

@@ -30,6 +30,7 @@ from cosim.scenario.conflicts import (
     fan_out_deletions,
     geometric_prohibitions,
     internal_stop_fixes,
+    looping_turn_deletions,
     overlapping_end_deletions,
     separated_shapes,
     sibling_change_bars,
@@ -565,16 +566,21 @@ def _merge_connection_lines(text: str) -> str:
     )
 
 
-def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Path) -> dict[str, int]:
+def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Path, *,
+                   first_pass: bool = False) -> dict[str, int]:  # fmt: skip
     """Append the geometric fixes (see ``cosim.scenario.conflicts``) for ``net_file`` to a connection file;
-    the stop lines moved back go to a new edge file (``edg_file``, written only when there are some)."""
+    the stop lines moved back go to a new edge file (``edg_file``, written only when there are some).
+    ``first_pass``: the network before any fix, whose looping turns are left for the next rounds (below)."""
     deletions = turnaround_deletions(net)
     deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
     fan_outs = fan_out_deletions(net)
     merges, crossed = crossing_merge_deletions(net_file)
     overlaps, overlapping = overlapping_end_deletions(net_file)
-    deletions += merges + overlaps
-    deleted |= {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in merges + overlaps}
+    # a loop is judged on the junction the other fixes have reshaped: they push most loops off the movement
+    # from the same lane (Krems: 3 in pass 1, none after), and those turns stay
+    loops, looping = ([], []) if first_pass else looping_turn_deletions(net_file)
+    deletions += merges + overlaps + loops
+    deleted |= {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in merges + overlaps + loops}
     prohibitions, pairs = geometric_prohibitions(net_file, deleted)
     stops, moved = internal_stop_fixes(net_file)
     shapes, separated = separated_shapes(net_file)
@@ -595,6 +601,7 @@ def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Pat
                 f"{j} {a}->{b}: deleted, its lane end {d} m from another movement's\n"
                 for j, a, b, d in overlapping
             )
+            + "".join(f"{j} {a}->{b}: deleted, a loop over a movement from its lane\n" for j, a, b in looping)
             + "".join(
                 f"{j} {lane}: {k} barred (into a lane a sibling runs beside)\n" for j, lane, k in barred
             )
@@ -603,7 +610,8 @@ def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Pat
                 for j, lane, via, d in crossed_ends
             )
         )
-    return {"turnarounds_removed": len(deletions) - len(merges) - len(overlaps),
+    return {"turnarounds_removed": len(deletions) - len(merges) - len(overlaps) - len(loops),
+            "looping_turns_removed": len(loops),
             "lane_fan_outs_removed": len(fan_outs), "crossing_merge_lanes_removed": len(merges),
             "overlapping_lanes_removed": len(overlaps),
             "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved),
@@ -677,7 +685,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     fix_log = workdir / "junction_fixes.txt"
     fix_log.unlink(missing_ok=True)
     ends = workdir / "ends.edg.xml"
-    fixes = junction_fixes(net1, pass1, files["con"], ends, fix_log)
+    fixes = junction_fixes(net1, pass1, files["con"], ends, fix_log, first_pass=True)
     edge_files = ",".join(str(f) for f in (files["edg"], ends) if f.exists())  # later files modify earlier
     final = workdir / "network.net.xml"
     run2 = run_tool(
