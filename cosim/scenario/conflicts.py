@@ -26,6 +26,7 @@ so that the two cross inside the junction.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import os
@@ -60,23 +61,17 @@ def _shape(s: str) -> list[tuple[float, float]]:
     return [tuple(map(float, p.split(",")[:2])) for p in s.split()]  # type: ignore[misc]
 
 
-_READ: dict[tuple, tuple] = {}  # the last network read: (path, mtime, size) -> what _read returns
-
-
 def _read(net_file: Path):
     """(lane shapes, junctions, internal junctions) of a network file. The passes of one fix round read the
     same file (north-bayreuth, ~2,000 junctions: 32 parses in 4 rounds, 18 of the build's 141 s in a profile):
     the last one is kept, keyed by the file's path, modification time and size, and shared (no pass changes
     what it gets)."""
     st = os.stat(net_file)
-    key = (str(Path(net_file).resolve()), st.st_mtime_ns, st.st_size)
-    if key not in _READ:
-        _READ.clear()
-        _READ[key] = _parse(net_file)
-    return _READ[key]
+    return _parse(str(Path(net_file).resolve()), st.st_mtime_ns, st.st_size)
 
 
-def _parse(net_file: Path):
+@functools.lru_cache(maxsize=1)
+def _parse(net_file: str, _mtime_ns: int, _size: int):
     root = ET.parse(net_file).getroot()
     shapes: dict[str, list] = {}
     for edge in root.iter("edge"):
