@@ -111,15 +111,21 @@ def _parse(net_file: str, _mtime_ns: int, _size: int):
 
 def _cut(shape, length: float, from_end: bool):
     """The last (from_end) or first ``length`` metres of a polyline."""
+    return list(_cut_once(tuple(shape), length, from_end))
+
+
+# the passes cut the same few lane ends again and again (every foe path of every waiting turn)
+@functools.lru_cache(maxsize=1 << 16)
+def _cut_once(shape: tuple, length: float, from_end: bool) -> tuple:
     import shapely
     import shapely.ops
 
     line = shapely.LineString(shape)
     if line.length <= length:
-        return list(line.coords)
+        return tuple(line.coords)
     part = shapely.ops.substring(line, line.length - length, line.length) if from_end else \
         shapely.ops.substring(line, 0.0, length)  # fmt: skip
-    return list(part.coords)
+    return tuple(part.coords)
 
 
 def _rank(c: _Conn) -> tuple:
@@ -333,18 +339,22 @@ def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2
         lead = min(CAR_LENGTH_M, shapely.LineString(shapes[waiting.from_lane]).length)
         path = shapely.LineString(_path(shapes, waiting, lead))
         # a foe that has just left the junction still has its body on the first metres of its lane
-        foe_area = shapely.union_all([shapely.LineString(_path(shapes, f, 0.0, CAR_LENGTH_M)) for f in foes
-                                      if f is not waiting and f.from_lane != waiting.from_lane])  # fmt: skip
-        if foe_area.is_empty:
+        foe_paths = [_path(shapes, f, 0.0, CAR_LENGTH_M) for f in foes
+                     if f is not waiting and f.from_lane != waiting.from_lane]  # fmt: skip
+        if not foe_paths:
             continue
-        foe_area = foe_area.buffer(VEHICLE_WIDTH_M / 2 + clearance_m)
+        # the body stands in a foe's way within this distance of its centre line: a distance test, not the
+        # buffered union of the foe paths, which cost 530 of 1,240 s of a 16,000-junction town's build
+        foe_lines = shapely.MultiLineString(foe_paths)
+        shapely.prepare(foe_lines)
+        reach = VEHICLE_WIDTH_M / 2 + clearance_m
         cont = first.length
         best = None
         p = cont
         while p >= 0.0:
             front = lead + p
             body = shapely.ops.substring(path, max(0.0, front - CAR_LENGTH_M), front)
-            if not body.intersects(foe_area):
+            if not shapely.dwithin(body, foe_lines, reach):
                 best = p
                 break
             p -= 0.25
@@ -757,7 +767,11 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
         for _ in range(rounds):
             disp = {k: np.zeros_like(v) for k, v in cur.items()}
             worst = clearance_m
+            box = {k: (v.min(0), v.max(0)) for k, v in cur.items()}
             for a, b in watch:
+                (lo_a, hi_a), (lo_b, hi_b) = box[id(a)], box[id(b)]
+                if np.hypot(*np.maximum(0.0, np.maximum(lo_a - hi_b, lo_b - hi_a))) >= clearance_m:
+                    continue  # bounding boxes this far apart: no point of one is near the other
                 for p, q in ((a, b), (b, a)):
                     pts, other = cur[id(p)], cur[id(q)]
                     near, d = _nearest_on(pts, other)
@@ -770,6 +784,7 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
                     disp[id(p)][close] += (away / norm * ((clearance_m - d) / 2.0 + 0.02)[:, None])[close]
             if worst >= clearance_m - 0.05:
                 break
+            changed = False
             for k, dv in disp.items():
                 if not dv.any() or k in frozen:
                     continue
@@ -782,7 +797,10 @@ def separated_shapes(net_file: Path, clearance_m: float = PATH_CLEARANCE_M, roun
                 if not shapely.LineString(moved).is_simple or _folds(moved):
                     frozen.add(k)  # pushed on, it would loop or fold over itself: it stays as it is now
                     continue
+                changed = changed or not np.array_equal(moved, pts)
                 cur[k] = moved
+            if not changed:
+                break  # every shape still close is frozen: the rounds left would repeat this one
         by_id = {id(c): c for c in unique}
         for k in sorted(involved, key=lambda k: (by_id[k].from_lane, by_id[k].to_lane)):
             moved = float(np.hypot(*(cur[k] - orig[k]).T).max())
