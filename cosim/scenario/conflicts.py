@@ -111,21 +111,15 @@ def _parse(net_file: str, _mtime_ns: int, _size: int):
 
 def _cut(shape, length: float, from_end: bool):
     """The last (from_end) or first ``length`` metres of a polyline."""
-    return list(_cut_once(tuple(shape), length, from_end))
-
-
-# the passes cut the same few lane ends again and again (every foe path of every waiting turn)
-@functools.lru_cache(maxsize=1 << 16)
-def _cut_once(shape: tuple, length: float, from_end: bool) -> tuple:
     import shapely
     import shapely.ops
 
     line = shapely.LineString(shape)
     if line.length <= length:
-        return tuple(line.coords)
+        return list(line.coords)
     part = shapely.ops.substring(line, line.length - length, line.length) if from_end else \
         shapely.ops.substring(line, 0.0, length)  # fmt: skip
-    return tuple(part.coords)
+    return list(part.coords)
 
 
 def _rank(c: _Conn) -> tuple:
@@ -344,7 +338,8 @@ def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2
         if not foe_paths:
             continue
         # the body stands in a foe's way within this distance of its centre line: a distance test, not the
-        # buffered union of the foe paths, which cost 530 of 1,240 s of a 16,000-junction town's build
+        # buffered union of the foe paths, which took 530 of 1,240 sampled s of campo-grande's build (a
+        # 10 x 22-km extract, 7,673 junctions)
         foe_lines = shapely.MultiLineString(foe_paths)
         shapely.prepare(foe_lines)
         reach = VEHICLE_WIDTH_M / 2 + clearance_m
