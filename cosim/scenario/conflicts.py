@@ -204,6 +204,9 @@ def geometric_prohibitions(net_file: Path, skip: set[tuple[str, str]] = frozense
 CAR_LENGTH_M = 5.0  # the longest SCV body waiting at an internal junction [m]
 # a movement that reverses its heading by more than this is a U-turn, whatever netconvert calls it [deg]
 U_TURN_DEG = 150.0
+# AASHTO's passenger-car design vehicle turns on this minimum radius (A Policy on Geometric Design of Highways
+# and Streets, 2011, Table 2-2b) [m]
+MIN_TURN_RADIUS_M = 7.3
 
 
 def _is_u_turn(conn) -> bool:
@@ -219,16 +222,12 @@ def _is_u_turn(conn) -> bool:
         return False  # the road's own way on (a hairpin OSM draws with few nodes): cars drive it
     if _short_loop(conn.getFrom(), conn.getTo()):
         return True
-    a, b = conn.getFromLane().getShape(), conn.getToLane().getShape()
-    if len(a) < 2 or len(b) < 2 or math.dist(a[-1], b[0]) >= CAR_LENGTH_M:
-        return False
-    return _heading_change_deg(a, b) > U_TURN_DEG
+    return _reverses_within(conn.getFromLane().getShape(), conn.getToLane().getShape(), CAR_LENGTH_M)
 
 
-# AASHTO's passenger-car design vehicle turning round on its 7.3-m minimum radius drives a half circle of
-# pi * 7.3 m (A Policy on Geometric Design, 2011, Table 2-2b); a way back to the junction just left that is
-# shorter than this is a U-turn too
-U_TURN_LOOP_M = math.pi * 7.3
+# the design car turning round on its minimum radius drives a half circle; a way back to the junction just
+# left that is shorter than this is a U-turn too
+U_TURN_LOOP_M = math.pi * MIN_TURN_RADIUS_M
 
 
 def _short_loop(edge, to_edge) -> bool:
@@ -254,6 +253,14 @@ def _heading_change_deg(a_shape, b_shape) -> float:
     heading_in = math.atan2(a_shape[-1][1] - a_shape[-2][1], a_shape[-1][0] - a_shape[-2][0])
     heading_out = math.atan2(b_shape[1][1] - b_shape[0][1], b_shape[1][0] - b_shape[0][0])
     return abs(math.degrees((heading_out - heading_in + math.pi) % (2 * math.pi) - math.pi))
+
+
+def _reverses_within(a_shape, b_shape, within_m: float) -> bool:
+    """Whether going from the end of polyline ``a_shape`` to the start of ``b_shape``, less than ``within_m``
+    away, reverses the heading (more than U_TURN_DEG)."""
+    if len(a_shape) < 2 or len(b_shape) < 2 or math.dist(a_shape[-1], b_shape[0]) >= within_m:
+        return False
+    return _heading_change_deg(a_shape, b_shape) > U_TURN_DEG
 
 
 def _reverses(edge, to_edge) -> bool:
@@ -428,10 +435,9 @@ def crossing_merge_deletions(net_file: Path) -> tuple[list[str], list[tuple]]:
     return lines, report
 
 
-# AASHTO's passenger-car design vehicle turns on a 7.3-m minimum radius (A Policy on Geometric Design of
-# Highways and Streets, 2011, Table 2-2b): a movement that reverses its heading closer to where it began than
-# that circle's diameter is a loop no car can drive [m]
-TURNING_CIRCLE_M = 2 * 7.3
+# a movement that reverses its heading closer to where it began than the design car's turning circle is a
+# loop no car can drive [m]
+TURNING_CIRCLE_M = 2 * MIN_TURN_RADIUS_M
 # two paths from one lane have parted once they are this far apart, and meet again this close [m]
 PARTED_M, MET_M = 1.0, 0.3
 
@@ -466,10 +472,9 @@ def looping_turn_deletions(net_file: Path) -> tuple[list[str], list[tuple[str, s
         inner = {id(c): shapely.LineString([p for lane in c.chain for p in shapes[lane]]) for c in unique}
         ways_in = {(c.from_edge, c.to_edge) for c in unique}
         for c in unique:
-            a, b = shapes[c.from_lane], shapes[c.to_lane]
-            if c.direction == "t" or len(a) < 2 or len(b) < 2 or _osm_way(c.from_edge) == _osm_way(c.to_edge):
+            if c.direction == "t" or _osm_way(c.from_edge) == _osm_way(c.to_edge):
                 continue
-            if _heading_change_deg(a, b) <= U_TURN_DEG or math.dist(a[-1], b[0]) >= TURNING_CIRCLE_M:
+            if not _reverses_within(shapes[c.from_lane], shapes[c.to_lane], TURNING_CIRCLE_M):
                 continue
             if not any(f != c.from_edge for f, t in ways_in if t == c.to_edge):
                 continue  # the only way into the target road
