@@ -51,6 +51,13 @@ LEAD_LENGTH_M = 5.0  # SUMO's default car, which the lead's vType copies [m]
 START_CLEAR_M = 10.0  # vehicles between the ego and up to this far ahead of the lead are taken out ...
 START_CLEAR_WIDTH_M = 3.0  # ... within this distance of the line through both (their lane) ...
 START_GUARD_S = 10.0  # ... during this long after they are placed [s]
+# a car behind the ego when it appears (standing) is taken out when it could not stop behind it: its reaction
+# time plus braking at SUMO's default passenger deceleration (sumo.dlr.de/docs/Vehicle_Type_Parameter_Defaults.html:
+# decel 4.5 m/s^2, tau 1 s). Krems seed 3: the ego placed on a 100-km/h road and an initial SCV at 24 m/s
+# 40 m behind it ran into it 0.1 s later
+START_BRAKE_MPS2 = 4.5
+START_REACTION_S = 1.0
+START_SAME_WAY_DEG = 45.0  # ... when heading within this of the ego's heading (its lane, not a crossing road)
 
 
 class Progress:
@@ -268,7 +275,8 @@ class Simulation:
         """For the first START_GUARD_S after the ego (and the lead) are placed: take out the vehicles SUMO
         inserts between them or onto the ego (an initial vehicle placed in their span of road), and at the
         first step those still waiting to be inserted on their edges, so the following task starts as
-        planned. Vehicles behind the ego are left alone."""
+        planned. Vehicles behind the ego are left alone, except at the first step those too close to stop
+        behind it (START_BRAKE_MPS2)."""
         w = self.world
         ego, lead = w.slot_of.get(EGO_ID), w.slot_of.get(LEAD_ID)
         if ego is None or (lead is None and self.config.ego.lead_vehicle):
@@ -291,8 +299,17 @@ class Simulation:
             dx, dy = (float(w.x_m[lead]) - ex) / max(span, 1e-9), (float(w.y_m[lead]) - ey) / max(span, 1e-9)
         along = (w.x_m - ex) * dx + (w.y_m - ey) * dy
         across = np.abs(-(w.x_m - ex) * dy + (w.y_m - ey) * dx)
+        rear = -float(w.length_m[ego])
         inside = (w.valid & np.isin(w.edge_code, edge_codes) & (across < START_CLEAR_WIDTH_M)
-                  & (along > -float(w.length_m[ego]) - 1.0) & (along < span + START_CLEAR_M))  # fmt: skip
+                  & (along > rear - 1.0) & (along < span + START_CLEAR_M))  # fmt: skip
+        if first:  # cars behind that the ego appeared in front of too close to stop
+            v = np.maximum(w.speed_mps, 0.0)
+            stop_m = v * START_REACTION_S + v * v / (2.0 * START_BRAKE_MPS2)
+            same_way = (
+                np.abs((w.heading_deg - w.heading_deg[ego] + 180.0) % 360.0 - 180.0) < START_SAME_WAY_DEG
+            )
+            inside |= (w.valid & same_way & (across < START_CLEAR_WIDTH_M) & (along <= rear - 1.0)
+                       & (rear - along < stop_m))  # fmt: skip
         doomed = [w.ids[s] for s in np.flatnonzero(inside).tolist() if w.ids[s] not in (EGO_ID, LEAD_ID)]
         if first:
             doomed += self.bridge.pending_on([w.edge_names[c] for c in edge_codes.tolist() if c >= 0])

@@ -305,12 +305,14 @@ class RouteChainer:
     def route_length(self, route: list[str]) -> float:
         return sum(self.length.get(e, 0.0) for e in route)
 
-    def extend(self, route: list[str], rng: np.random.Generator, legs_for) -> float:
+    def extend(
+        self, route: list[str], rng: np.random.Generator, legs_for, avoid_node: str | None = None
+    ) -> float:
         """Append one leg to ``route`` (in place) from a batch of random destinations; ``legs_for(pairs)``
         returns {(origin, destination): edges} for the ones it could route. Returns the added length [m]
-        (0: no destination of the batch gave a leg without a hairpin). A leg that passes a junction twice
-        (a loop round a block or through a parking lot to turn round) is taken only when the batch has no
-        other."""
+        (0: no destination of the batch gave a leg without a hairpin, or every leg passed ``avoid_node``).
+        A leg that passes a junction twice (a loop round a block or through a parking lot to turn round) is
+        taken only when the batch has no other."""
         dests = [self.dest_ids[int(i)] for i in rng.integers(0, len(self.dest_ids), self.BATCH)]
         if self.endless:  # drawn as before, so that routes which never entered a dead-end part stay the same
             dests = [d for d in dests if d in self.endless]
@@ -320,7 +322,10 @@ class RouteChainer:
         good = [
             leg
             for d in dests
-            if (leg := legs.get((route[-1], d))) and len(leg) >= 3 and not self.turns_back(leg)
+            if (leg := legs.get((route[-1], d)))
+            and len(leg) >= 3
+            and not self.turns_back(leg)
+            and avoid_node not in (self.to_node[e] for e in leg)
         ]
         if not good:
             return 0.0
@@ -353,6 +358,7 @@ def turns_round(route: list[str], to_node: dict[str, str], opposite: dict[str, s
 
 
 STUCK_BATCHES = 3  # the ego's route starts again elsewhere after this many batches in a row gave no leg
+START_TRIES = 6  # ... at most this many starts
 
 
 def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: float, table: RouteTable,
@@ -365,14 +371,20 @@ def choose_ego_route(net, comp: list, rng: np.random.Generator, min_length_m: fl
         return table.routes(pairs, net_file, workdir)
 
     best: list[str] = []
-    for _ in range(6):  # a new start only when the route gets stuck (no leg without a U-turn)
-        route = [starts[int(rng.integers(len(starts)))].getID()]
+    for attempt in range(START_TRIES):  # a new start only when the route gets stuck (no leg without a U-turn)
+        start = starts[int(rng.integers(len(starts)))]
+        route = [start.getID()]
+        # the first leg may not come back to the junction the route starts from: from a start whose every
+        # way on goes round the block and back to turn (Krems, seed 3: 24864391#2, #3, -24991808 to
+        # 270185564, 710 m) the pair came back to the give-way beside its start just as the town's jam
+        # reached it, and stood 89 s; another start is drawn (the last one may)
+        origin = start.getFromNode().getID() if attempt < START_TRIES - 1 else None
         total = chainer.length[route[0]]
         stuck, failed = False, 0
         for _ in range(12 + STUCK_BATCHES):  # batches of candidate legs, routed together
             if total >= min_length_m:
                 return route
-            added = chainer.extend(route, rng, legs_for)
+            added = chainer.extend(route, rng, legs_for, avoid_node=origin if len(route) == 1 else None)
             if not added:  # every destination of the batch needed a U-turn from here: another batch
                 failed += 1
                 if failed >= STUCK_BATCHES:

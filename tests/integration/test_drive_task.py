@@ -7,7 +7,7 @@ from pathlib import Path
 
 import libsumo  # the runs' SUMO: libsumo runs in this process
 import pytest
-from osm_factory import OsmSketch
+from osm_factory import OsmSketch, crossroads
 
 from cosim.runconfig import load_run_config
 from cosim.scenario import build_scenario
@@ -72,3 +72,35 @@ def test_the_route_is_extended_past_its_first_destination(tmp_path):
     assert lead_route and lead_route[-1] == sim.ego_route[-1]  # the lead keeps to the same, extended route
     assert h["longest_standstill_s"] < 30.0 and h["stalls"] == 0
     assert h["lead_leader_share"] > 0.9, h
+
+
+def test_a_car_that_could_not_stop_behind_the_placed_ego_is_taken_out(tmp_path):
+    """The ego appears standing at the start of its route; a car already coming up behind it at 90 km/h
+    within its stopping distance (reaction + 4.5 m/s^2) is taken out at once, one farther back stays (Krems,
+    seed 3: an initial car at 24 m/s ran into the ego placed on a 100-km/h road, 0.1 s after it appeared)."""
+    sketch = crossroads("secondary", "residential", arm_m=400.0, major_tags={"maxspeed": "100"})
+    osm = sketch.write(tmp_path / "cross.osm")
+    scn = build_scenario(osm, tmp_path / "scn", density="low", seed=1, log=lambda *a: None)
+    import sumolib
+
+    net = sumolib.net.readNet(str(scn.net_file))
+    west, centre, east = (sketch.ids[n] for n in ("w", "c", "e"))
+    into_c = next(e for e in net.getNode(west).getOutgoing() if e.getToNode().getID() == centre)
+    out_of_c = next(e for e in net.getNode(centre).getOutgoing() if e.getToNode().getID() == east)
+    cfg = load_run_config(None, **{"scenario.map": str(osm), "scenario.demand.density": "low",
+                                   "ego.route": [out_of_c.getID()], "vanet": None, "seed": 1,
+                                   "duration_s": 10})  # fmt: skip
+    with Simulation(cfg, out_dir=tmp_path / "run", scenario=scn) as sim:
+        for vid, behind_m in (("near", 50.0), ("far", 250.0)):
+            libsumo.route.add(f"r_{vid}", [into_c.getID(), out_of_c.getID()])
+            libsumo.vehicle.add(vid, f"r_{vid}", depart="now", departSpeed="25",
+                                departPos=f"{into_c.getLength() - behind_m:.1f}")  # fmt: skip
+        sim.step()
+        departed = set(libsumo.simulation.getDepartedIDList())
+        running = set(libsumo.vehicle.getIDList())
+        for _ in range(99):
+            sim.step()
+        rep = sim.health.report()
+    assert {"ego", "near", "far"} <= departed  # all on the road at the first step ...
+    assert "near" not in running and "far" in running, running  # ... and the near one taken out at once
+    assert rep["collisions"] == 0, rep

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from types import SimpleNamespace
 
+import numpy as np
+
 from cosim.scenario.demand import RouteChainer
 
 
@@ -83,3 +85,24 @@ def test_endless_edges_are_those_a_route_can_leave_for_ever_without_turning_back
     assert c.endless == {"s1", "s2", "s3", "s4"}
     e["s4"].outs = []  # no block: every way turns round or ends
     assert RouteChainer(list(e.values())).endless == set()
+
+
+def test_a_first_leg_that_comes_back_to_the_start_junction_is_refused_when_asked():
+    """Krems, seed 3: from 24864391#2 every destination was reached round the block and back through the
+    junction the route set off from; with ``avoid_node`` (the start junction, for the ego's first leg) such a
+    batch gives no leg, so the route starts elsewhere, and a leg that does not pass it is still taken."""
+    e = {k: LinkedEdge(k, h, 100.0) for k, h in
+         (("start", 0.0), ("n", 90.0), ("w", 180.0), ("s", 270.0), ("away", 0.0))}  # fmt: skip
+    c = RouteChainer(list(e.values()))
+    c.dest_ids, c.endless = ["away"], set()
+    round_the_block = ["start", "n", "w", "s", "away"]  # "s" ends where "start" begins
+    c.to_node["s"] = "junction0"
+
+    def legs_for(pairs):
+        return {p: round_the_block for p in pairs}
+
+    route = ["start"]
+    assert c.extend(route, np.random.default_rng(0), legs_for, avoid_node="junction0") == 0.0
+    assert route == ["start"]
+    assert c.extend(route, np.random.default_rng(0), legs_for, avoid_node="elsewhere") == 400.0
+    assert route == round_the_block
