@@ -61,6 +61,15 @@ def test_garbage_bytes(tmp_path):
     )
 
 
+def test_pbf_is_named_with_the_way_to_convert_it(tmp_path):
+    """Extracts often come as .osm.pbf, which netconvert cannot read: say so, not "corrupt XML"."""
+    bad = tmp_path / "town.osm.pbf"
+    # a PBF file opens with a 4-byte length and the BlobHeader of its "OSMHeader" blob
+    bad.write_bytes(b"\x00\x00\x00\x0e\x0a\x09OSMHeader\x18\x7b\x10\x73" + bytes(64))
+    assert_clean_failure(cosim("build-scenario", "--osm", str(bad), "--out", str(tmp_path / "o")),
+                         "is OSM PBF", tmp_path / "o")  # fmt: skip
+
+
 def test_osm_without_drivable_roads(tmp_path):
     s = OsmSketch()
     s.node("a", 0, 0)
