@@ -53,8 +53,8 @@ START_CLEAR_WIDTH_M = 3.0  # ... within this distance of the line through both (
 START_GUARD_S = 10.0  # ... during this long after they are placed [s]
 # a car behind the ego when it appears (standing) is taken out when it could not stop behind it: its reaction
 # time plus braking at SUMO's default passenger deceleration (sumo.dlr.de/docs/Vehicle_Type_Parameter_Defaults.html:
-# decel 4.5 m/s^2, tau 1 s). Krems seed 3: the ego placed on a 100-km/h road and an initial SCV at 24 m/s
-# 40 m behind it ran into it 0.1 s later
+# decel 4.5 m/s^2, tau 1 s). Krems seed 3: the ego placed on a 100-km/h road, and an initial SCV coming up
+# behind it at 24 m/s ran into it 0.1 s later
 START_BRAKE_MPS2 = 4.5
 START_REACTION_S = 1.0
 START_SAME_WAY_DEG = 45.0  # ... when heading within this of the ego's heading (its lane, not a crossing road)

@@ -83,9 +83,8 @@ def read_osm(path: str | Path) -> OsmInfo:
         raise CosimError(f"OSM file {path} does not exist")
     with open(path, "rb") as fh:
         head = fh.read(64)
-    if (
-        b"OSMHeader" in head
-    ):  # a PBF file's first blob header names its type (wiki.openstreetmap.org/wiki/PBF_Format)
+    # a PBF file's first blob header names its type (wiki.openstreetmap.org/wiki/PBF_Format)
+    if b"OSMHeader" in head:
         raise CosimError(
             f"{path} is OSM PBF; cosim (like netconvert) reads OSM XML (.osm or .osm.gz): convert it first, "
             f"e.g. `osmium cat {path.name} -o {path.name.removesuffix('.pbf').removesuffix('.osm')}.osm.gz`"
