@@ -12,7 +12,8 @@ the priority cars that turned in meanwhile came between the lead and the ego.
 After ``COURTESY_AFTER_S`` first in line (the lead with the ego queued behind it, or the ego alone), the
 nearest priority car approaching within ``COURTESY_LOOK_M`` that can still stop comfortably short of the
 conflict (``COURTESY_DECEL_MPS2``) is asked to: its speed is capped so that it stops ``STOP_SHORT_M``
-before it, and held there until the ego's front is past the line (both of the pair go through), or
+before it (at its line when that spot is inside the junction; a car already in one is not asked), and held
+there until the ego's front is past the line (both of the pair go through), or
 ``COURTESY_HOLD_S`` at most. Standing, it is no foe
 (``cosim.phases.ego.priority_gap_s``); other priority traffic still is. Each ask is a ``courtesy_yield``
 event. The wait and the ask are assumptions of this simulator (no measured rate): ``COURTESY_AFTER_S``
@@ -31,7 +32,12 @@ from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 COURTESY_AFTER_S = 20.0  # first in line this long at a yield line, the waiting driver is let in [s]
 COURTESY_LOOK_M = 80.0  # the priority car asked is at most this far from the conflict [m]
 COURTESY_DECEL_MPS2 = 2.5  # ... and can stop short of it braking at this (a comfortable stop) [m/s^2]
-STOP_SHORT_M = 6.0  # it stops this far before the conflict [m]
+STOP_SHORT_M = 6.0  # it stops this far before the conflict [m] ...
+# ... or, when that is inside the junction, this far before its line: standing in a wide junction it was in
+# the way of the other priority movements, which the participant then waited for (graphhopper's Beatty,
+# US-95 at 140889506, seed 2: asked 11 m before the conflict, it stood on its internal lane, a car behind it
+# in the junction was the participant's foe, and all three waited 28 s, until COURTESY_HOLD_S let it go)
+LINE_SPARE_M = 0.5
 # it stands until the ego is past the line, at most this long: let go after 15 s, while crossing traffic
 # from the other side still held the lead, the car came between the lead and the ego itself (Monaco seed 2)
 COURTESY_HOLD_S = 30.0
@@ -42,6 +48,8 @@ class CourtesyBridge(Protocol):
     """What the courtesy asks SUMO and tells it (``cosim.sumo_bridge.SumoBridge`` provides it)."""
 
     def yield_foes(self, vid: str, lookahead_m: float) -> list[tuple[str, float, float, float, bool]]: ...
+
+    def junction_ahead(self, vid: str) -> tuple[float, float] | None: ...
 
     def cap_speed(self, vid: str, speed_mps: float | None) -> None: ...
 
@@ -73,16 +81,22 @@ class CourtesyYield:
             if slot is None or held_back or foe_dist > COURTESY_LOOK_M or foe in (EGO_ID, LEAD_ID):
                 continue
             v = float(w.speed_mps[slot])
+            ahead = self.bridge.junction_ahead(foe)
+            if v < MOVING_MPS or ahead is None:
+                continue  # queued, or already in a junction: it goes first
             room = foe_dist - STOP_SHORT_M
-            if v < MOVING_MPS or room < v * v / (2.0 * COURTESY_DECEL_MPS2):
-                continue  # queued, or too near to stop comfortably: it goes first
+            line_m, passage_m = ahead
+            if line_m - LINE_SPARE_M < room < line_m + passage_m:
+                room = line_m - LINE_SPARE_M  # the spot is in the junction ahead of it: at its line instead
+            if room < v * v / (2.0 * COURTESY_DECEL_MPS2):
+                continue  # too near to stop comfortably: it goes first
             if best is None or foe_dist < best[1]:
-                best = (foe, foe_dist)
+                best = (foe, foe_dist, room)
         if best is None:
             return
         self._asked_at.add(key)
         self.car, self._since, self._line_s = best[0], w.t_s, line_s_m
-        self._to_stop_m = best[1] - STOP_SHORT_M
+        self._to_stop_m = best[2]
         self.emit(SumoEvent("courtesy_yield", self.car, f"stops for the {vid} at {junction}", best[1]))
         self.hold(w, None)
 

@@ -56,6 +56,7 @@ INVALID_POSITION = -1.0e9
 # 3 s): a pair reported within this many steps is the same collision, reported once
 COLLISION_MEMORY_STEPS = 10
 PULL_OVER_PAST_JUNCTION_M = 10.0  # a roadside stop on the next edge is at least this far into it [m]
+MAX_INTERNAL_CHAIN = 8  # internal lanes one way through a junction is split into, at most (netconvert: 2)
 
 
 def _phase_span(phase) -> tuple[float, float, str]:
@@ -702,6 +703,25 @@ class SumoBridge:
             standing = veh.getWaitingTime(foe)
             out.append((foe, ego_dist, foe_dist, standing, standing > 0 and self._held_back(foe)))
         return out
+
+    def junction_ahead(self, vid: str) -> tuple[float, float] | None:
+        """(metres from ``vid`` to the end of its lane, the length of its way through the junction there) for a
+        vehicle on a normal lane; None inside a junction or with no link ahead."""
+        veh, lane_api = self._sumo.vehicle, self._sumo.lane
+        lane = veh.getLaneID(vid)
+        if not lane or lane.startswith(":"):
+            return None
+        links = veh.getNextLinks(vid)  # (lane, hasPrio, isOpen, hasFoe, via, state, direction, length)
+        if not links:
+            return None
+        passage, via = 0.0, links[0][4]
+        for _ in range(MAX_INTERNAL_CHAIN):  # a junction's way may be split by internal junctions
+            if not via:
+                break
+            passage += lane_api.getLength(via)
+            onward = lane_api.getLinks(via)
+            via = onward[0][4] if onward else ""
+        return lane_api.getLength(lane) - veh.getLanePosition(vid), passage
 
     def _approaching_foes(self, vid: str, lookahead_m: float) -> dict[str, tuple[float, float]]:
         """foe id -> (``vid``'s distance to its stop line, the foe's distance to that junction) [m] for the

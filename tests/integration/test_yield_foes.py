@@ -53,3 +53,30 @@ def test_a_priority_car_one_road_upstream_is_a_foe_and_one_turning_off_before_is
         assert bridge.yield_foes("fast", 300.0) == []
     finally:
         libsumo.close()
+
+
+@pytest.mark.own_process
+def test_junction_ahead_is_the_way_to_the_line_and_through_the_junction_and_none_inside_one(t_junction):
+    """Where a priority car asked to let the participant in would stand (``CourtesyYield``): its line, not
+    inside the junction."""
+    import libsumo
+
+    from cosim.sumo_bridge.bridge import SumoBridge
+
+    libsumo.start(["sumo", "-n", str(t_junction), "--no-step-log", "true"])
+    try:
+        bridge = SumoBridge.__new__(SumoBridge)
+        bridge._sumo, bridge._incoming = libsumo, None
+        libsumo.route.add("main", ["AC", "CE"])
+        libsumo.vehicle.add("car", "main", depart="now", departPos="40", departSpeed="0")
+        libsumo.simulationStep()
+        line_m, passage_m = bridge.junction_ahead("car")
+        lane = libsumo.vehicle.getLaneID("car")
+        assert line_m == pytest.approx(libsumo.lane.getLength(lane) - libsumo.vehicle.getLanePosition("car"))
+        via = libsumo.vehicle.getNextLinks("car")[0][4]
+        assert via.startswith(":C_") and passage_m >= libsumo.lane.getLength(via) > 0.0
+        libsumo.vehicle.moveTo("car", via, 0.5)
+        libsumo.simulationStep()
+        assert libsumo.vehicle.getLaneID("car").startswith(":") and bridge.junction_ahead("car") is None
+    finally:
+        libsumo.close()

@@ -7,7 +7,13 @@ import math
 
 import pytest
 
-from cosim.phases.courtesy import COURTESY_DECEL_MPS2, COURTESY_HOLD_S, STOP_SHORT_M, CourtesyYield
+from cosim.phases.courtesy import (
+    COURTESY_DECEL_MPS2,
+    COURTESY_HOLD_S,
+    LINE_SPARE_M,
+    STOP_SHORT_M,
+    CourtesyYield,
+)
 from cosim.phases.ego import priority_gap_s
 from cosim.world import EGO_ID, World
 
@@ -16,9 +22,13 @@ class FakeBridge:
     def __init__(self):
         self.foes: list[tuple[str, float, float, float, bool]] = []
         self.caps: dict[str, float | None] = {}
+        self.ahead: dict[str, tuple[float, float] | None] = {}  # (to its line, through the junction) [m]
 
     def yield_foes(self, vid, lookahead_m):
         return self.foes
+
+    def junction_ahead(self, vid):
+        return self.ahead.get(vid, (1000.0, 10.0))
 
     def cap_speed(self, vid, speed_mps):
         self.caps[vid] = speed_mps
@@ -84,3 +94,15 @@ def test_nobody_is_asked_when_no_car_can_stop_comfortably():
     w, _, events, courtesy = _setup({"near": (20.0, 14.0, False)})
     courtesy.ask(w, EGO_ID, 1.0, 100.0, "J")
     assert courtesy.car is None and events == []
+
+
+def test_a_car_asked_stops_at_its_line_when_the_spot_is_in_the_junction_and_one_inside_is_not_asked():
+    """A wide junction: 6 m before the conflict is 11 m past the car's line, inside the junction, where it
+    would stand in the way of the other priority movements (Beatty, US-95)."""
+    w, bridge, events, courtesy = _setup({"inside": (30.0, 8.0, False), "wide": (60.0, 12.0, False)})
+    bridge.ahead = {"inside": None, "wide": (60.0 - 17.0, 20.0)}  # line 17 m before the conflict
+    courtesy.ask(w, EGO_ID, 1.0, 100.0, "J")
+    assert courtesy.car == "wide"
+    # it stops at its line: 43 m less the spare, less the 1.2 m it drives in the step it is asked in
+    to_line = 43.0 - LINE_SPARE_M - 12.0 * 0.1
+    assert bridge.caps["wide"] == pytest.approx(math.sqrt(2.0 * COURTESY_DECEL_MPS2 * to_line))

@@ -75,6 +75,9 @@ class FakeBridge:
     def yield_foes(self, vid, lookahead_m):
         return self.foes
 
+    def junction_ahead(self, vid):  # every priority car far from its line: a spot short of the conflict
+        return (1000.0, 10.0)
+
     def edges_left(self, vid):
         return self.held if self.held is not None else len(self.given[-1]) if self.given else 0
 

@@ -75,6 +75,9 @@ class FakeBridge:
     def yield_foes(self, vid, lookahead_m):
         return self.foes
 
+    def junction_ahead(self, vid):  # every priority car far from its line: a spot short of the conflict
+        return (1000.0, 10.0)
+
     def route_ahead(self, vid, within_m=math.inf):
         assert vid == LEAD_ID
         self.route_within_m = within_m
