@@ -35,7 +35,7 @@ COURTESY_DECEL_MPS2 = 2.5  # ... and can stop short of it braking at this (a com
 STOP_SHORT_M = 6.0  # it stops this far before the conflict [m] ...
 # ... or, when that is inside the junction, this far before its line: standing in a wide junction it was in
 # the way of the other priority movements, which the participant then waited for (graphhopper's Beatty,
-# US-95 at 140889506, seed 2: asked 11 m before the conflict, it stood on its internal lane, a car behind it
+# US-95 at 140889506, seed 2: asked 26 m before the conflict, it stood on its internal lane, a car behind it
 # in the junction was the participant's foe, and all three waited 28 s, until COURTESY_HOLD_S let it go)
 LINE_SPARE_M = 0.5
 # it stands until the ego is past the line, at most this long: let go after 15 s, while crossing traffic
@@ -84,10 +84,7 @@ class CourtesyYield:
             ahead = self.bridge.junction_ahead(foe)
             if v < MOVING_MPS or ahead is None:
                 continue  # queued, or already in a junction: it goes first
-            room = foe_dist - STOP_SHORT_M
-            line_m, passage_m = ahead
-            if line_m - LINE_SPARE_M < room < line_m + passage_m:
-                room = line_m - LINE_SPARE_M  # the spot is in the junction ahead of it: at its line instead
+            room = _short_of_the_junction(foe_dist - STOP_SHORT_M, ahead)
             if room < v * v / (2.0 * COURTESY_DECEL_MPS2):
                 continue  # too near to stop comfortably: it goes first
             if best is None or foe_dist < best[1]:
@@ -113,4 +110,14 @@ class CourtesyYield:
             self.car = None
             return
         self._to_stop_m = max(0.0, self._to_stop_m - float(w.speed_mps[slot]) * self.step_s)
+        ahead = self.bridge.junction_ahead(self.car)  # asked a junction upstream, it has come to the next one
+        if ahead is not None:
+            self._to_stop_m = max(0.0, _short_of_the_junction(self._to_stop_m, ahead))
         self.bridge.cap_speed(self.car, math.sqrt(2.0 * COURTESY_DECEL_MPS2 * self._to_stop_m))
+
+
+def _short_of_the_junction(to_stop_m: float, ahead: tuple[float, float]) -> float:
+    """Where a car stops: ``to_stop_m`` ahead, or at its line when that spot is in the junction ahead of it
+    (``ahead``: metres to its line, metres through the junction)."""
+    line_m, passage_m = ahead
+    return line_m - LINE_SPARE_M if line_m - LINE_SPARE_M < to_stop_m < line_m + passage_m else to_stop_m
