@@ -81,9 +81,11 @@ class CourtesyYield:
             if slot is None or held_back or foe_dist > COURTESY_LOOK_M or foe in (EGO_ID, LEAD_ID):
                 continue
             v = float(w.speed_mps[slot])
+            if v < MOVING_MPS:
+                continue  # queued: it goes first
             ahead = self.bridge.junction_ahead(foe)
-            if v < MOVING_MPS or ahead is None:
-                continue  # queued, or already in a junction: it goes first
+            if ahead is None:
+                continue  # already in a junction: it goes first
             room = _short_of_the_junction(foe_dist - STOP_SHORT_M, ahead)
             if room < v * v / (2.0 * COURTESY_DECEL_MPS2):
                 continue  # too near to stop comfortably: it goes first
