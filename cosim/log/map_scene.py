@@ -10,7 +10,10 @@ simulation does not wait for it.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -146,3 +149,57 @@ def signal_lamps(net) -> list[tuple[str, int, np.ndarray]]:
 def map_scene_update(scenario_dir: str | Path) -> dict:
     """The ``/map`` message: ``foxglove.SceneUpdate`` of :func:`map_entities`."""
     return {"deletions": [], "entities": map_entities(scenario_dir)}
+
+
+_SCENE_INPUTS = ("network.net.xml", "buildings.poly.xml", "signs.add.xml")
+
+
+def _scene_digest(sdir: Path) -> str:
+    """What the ``/map`` payload depends on: the code that draws and encodes it and the scenario's files
+    (size and modification time: a scenario folder is written once, but a user may edit one)."""
+    import shapely
+
+    root = Path(__file__).resolve().parents[1]
+    code = [Path(__file__).resolve(), root / "log" / "writer.py", root / "scenario" / "buildings.py",
+            root / "scenario" / "signs.py", root / "sumo_bridge" / "network.py",
+            *sorted((root / "world3d").glob("*.py"))]  # fmt: skip
+    h = hashlib.sha256(f"{np.__version__} {shapely.__version__}".encode())
+    for path in code:
+        h.update(path.read_bytes())
+    for name in _SCENE_INPUTS:
+        st = (sdir / name).stat() if (sdir / name).exists() else None
+        h.update(f"{name} {st.st_size} {st.st_mtime_ns}".encode() if st else f"{name} -".encode())
+    return h.hexdigest()[:20]
+
+
+def map_scene_json(scenario_dir: str | Path) -> bytes:
+    """:func:`map_scene_update` as the log writes it (``cosim.log.writer.encode``), kept in the scenario's
+    folder after its first drawing: every run and experiment participant on the scenario logs the same
+    bytes, and drawing and encoding a town's map costs seconds of the log writer's time per run. Not kept
+    where the folder is read-only."""
+    from cosim.log.writer import encode
+
+    sdir = Path(scenario_dir)
+    cached = sdir / f"map_scene.{_scene_digest(sdir)}.json"
+    try:
+        return cached.read_bytes()
+    except OSError:
+        pass
+    data = encode(map_scene_update(sdir))
+    tmp = None
+    try:  # whole or not at all: written beside, then renamed (runs in parallel may race; same bytes)
+        fd, tmp = tempfile.mkstemp(dir=sdir, prefix=".map_scene.", suffix=".tmp")
+        os.fchmod(fd, 0o644)  # as the scenario's other files
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, cached)
+        tmp = None
+        for old in sdir.glob("map_scene.*.json"):  # drawn by other code or from other files
+            if old != cached:
+                old.unlink(missing_ok=True)
+    except OSError:
+        pass
+    finally:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
+    return data

@@ -15,7 +15,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from cosim.log.map_scene import map_scene_update, signal_lamps
+from cosim.log.map_scene import map_scene_json, signal_lamps
 from cosim.log.schemas import TOPIC_SCHEMAS
 from cosim.log.writer import McapLog
 from cosim.outputs import StepOutputs
@@ -55,7 +55,7 @@ class Recorder:
         self._lamps: list[tuple[str, int, np.ndarray]] = []
         if self.cfg.scene_every_steps:
             self._channel("/map")
-            self.log.write_deferred("/map", 0.0, map_scene_update, str(scenario_dir))
+            self.log.write_deferred("/map", 0.0, map_scene_json, str(scenario_dir))
             self._lamps = signal_lamps(network())  # the lamps /scene lights (the poles are on /map)
 
     def _channel(self, topic: str) -> None:
@@ -134,6 +134,7 @@ class Recorder:
                     lamps.append((pos[_LAMP_SLOT[lamp]], lamp))
             log.write_deferred("/scene", t, _scene, t, [w.ids[i] for i in idx.tolist()], cx[idx], cy[idx],
                                w.heading_deg[idx], w.length_m[idx], w.width_m[idx], w.is_ego[idx], lamps)  # fmt: skip
+        log.end_step()
 
     def close(self) -> None:
         pass  # the writer is the run's (cosim.sim closes it after writing /health)
