@@ -1,7 +1,7 @@
 """One MCAP file per run: zstd chunks, JSON messages with JSON-schema channels.
 
 The JSON encoding, chunking and compression run in a child process by default (``background``): the
-simulation process only pickles each message into a pipe, so logging costs the lockstep loop little (a
+simulation process only pickles each step's messages into a pipe, so logging costs the lockstep loop little (a
 thread would not help: libsumo keeps the GIL while SUMO steps). Messages keep their order (one pipe, one
 writer), so the file is as deterministic as before; ``write_deferred`` moves the building of a large
 payload (per-vehicle columns) to the writer too.
@@ -179,8 +179,8 @@ class McapLog:
 
     def end_step(self) -> None:
         """Send the records of the step to the writer as one pickle (one per message costs the simulation
-        ~10 us each in pickling and signal masking). Pickled now: a message must not change before this,
-        as before (``write_deferred``'s args never)."""
+        ~10 us each in pickling and signal masking). They are pickled only now: a message written this step
+        must not change before (``write_deferred``'s args never)."""
         if not self._batch:
             return
         batch, self._batch = self._batch, []
