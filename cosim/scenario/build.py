@@ -11,6 +11,7 @@ import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -19,6 +20,8 @@ from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.scenario.buildings import build_buildings
 from cosim.scenario.demand import DemandParams, build_demand
+from cosim.scenario.driving_side import lookup_version as side_lookup_version
+from cosim.scenario.driving_side import resolve as resolve_driving_side
 from cosim.scenario.network import OPTIONS_DIR, build_network, pass1_options
 from cosim.scenario.osm import read_osm
 from cosim.scenario.routetable import RouteTable
@@ -43,6 +46,8 @@ class ScenarioConfig:
     map: str = "configs/maps/krems.osm.gz"  # OSM file (.osm or .osm.gz), relative to the config's folder
     demand: DemandParams = field(default_factory=DemandParams)
     behaviour: ScvBehaviour = field(default_factory=ScvBehaviour)
+    # which side traffic keeps to: auto = the country the extract lies in (cosim.scenario.driving_side)
+    driving_side: Literal["auto", "right", "left"] = "auto"
 
 
 @dataclass(frozen=True)
@@ -158,12 +163,12 @@ def pipeline_digest() -> str:
     return h.hexdigest()
 
 
-def _network_key(osm_sha: str, behaviour: ScvBehaviour) -> str:
+def _network_key(osm_sha: str, behaviour: ScvBehaviour, driving_side: str) -> str:
     option_files = sorted((p.name, _sha256(p)) for p in OPTIONS_DIR.iterdir())
-    net_relevant = behaviour.give_way_approach_speed_kmh
+    side = f"auto ({side_lookup_version()})" if driving_side == "auto" else driving_side
     return _key(
-        CACHE_FORMAT, pipeline_digest(), osm_sha, option_files, pass1_options(Path("X"), Path("Y")), net_relevant,
-        sumo_version(),
+        CACHE_FORMAT, pipeline_digest(), osm_sha, option_files, pass1_options(Path("X"), Path("Y")),
+        behaviour.give_way_approach_speed_kmh, side, sumo_version(),
     )  # fmt: skip
 
 
@@ -195,12 +200,15 @@ def _network_counts(net) -> dict:
     }
 
 
-def _build_network_dir(osm, behaviour: ScvBehaviour, tmp: Path) -> dict:
+def _build_network_dir(osm, behaviour: ScvBehaviour, driving_side: str, tmp: Path) -> dict:
     t0 = time.perf_counter()
-    nb = build_network(osm, behaviour, tmp)
+    lefthand, side_how = resolve_driving_side(driving_side, osm.centre)
+    nb = build_network(osm, behaviour, tmp, lefthand=lefthand)
     t1 = time.perf_counter()
     net = read_network(nb.net_file)
-    signs = derive_signs(net, nb.placements, nb.junction_kind, nb.tls_approaches, osm.signs)
+    signs = derive_signs(
+        net, nb.placements, nb.junction_kind, nb.tls_approaches, osm.signs, lefthand=lefthand
+    )
     write_signs(signs, tmp / "signs.add.xml")
     n_buildings, height_sources, poly_run = build_buildings(osm.path, nb.net_file, tmp / "buildings.poly.xml")
     counts = _network_counts(net)
@@ -210,6 +218,7 @@ def _build_network_dir(osm, behaviour: ScvBehaviour, tmp: Path) -> dict:
     counts["osm_signs_unplaced"] = [
         {"node": p.sign.node_id, "kind": p.sign.kind, "why": p.note} for p in nb.placements if p.note
     ]
+    counts["driving_side"] = side_how
     info = {
         "network": counts,
         "signs": {k: sum(1 for s in signs if s.kind == k) for k in SIGN_KINDS},
@@ -287,7 +296,7 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
         raise CosimError(f"OSM file {osm_path} does not exist")
     osm_sha = _sha256(osm_path)
     root = cache_dir()
-    net_key = _network_key(osm_sha, config.behaviour)
+    net_key = _network_key(osm_sha, config.behaviour, config.driving_side)
     scn_key = _key(net_key, to_dict(demand), to_dict(config.behaviour), seed)
     scn_dir = root / "scenarios" / scn_key
     cached = (scn_dir / "report.json").exists()  # only complete, valid builds are ever published
@@ -302,7 +311,7 @@ def build_scenario(osm_path: str | Path, out: str | Path | None = None, *, densi
         else:
             tmp = Path(tempfile.mkdtemp(prefix="net-", dir=_mkdir(root)))
             try:
-                _build_network_dir(osm, config.behaviour, tmp)
+                _build_network_dir(osm, config.behaviour, config.driving_side, tmp)
                 _publish(tmp, net_dir)
             finally:
                 shutil.rmtree(tmp, ignore_errors=True)
@@ -407,7 +416,8 @@ def summary_lines(report: dict, where: Path) -> list[str]:
     return [
         f"scenario {where} ({report['scenario_cache']}, {report['build_s']:.1f} s) from {report['osm']['file']}",
         f"  network: {n['edges']} edges, {n['lane_km']} lane-km, {n['junctions']} junctions "
-        f"({', '.join(f'{k} {v}' for k, v in jt.items())})",
+        f"({', '.join(f'{k} {v}' for k, v in jt.items())}); traffic keeps "
+        f"{n['driving_side']}",
         f"  control: {n['traffic_lights']} traffic lights, {n['stop_junctions']} stop, {n['allway_stop_junctions']} "
         f"all-way stop, {n['yield_junctions']} yield junctions; {n['turn_lane_connections']} turn-lane connections",
         "  signs: " + ", ".join(f"{k} {v}" for k, v in s.items()),

@@ -11,7 +11,8 @@ Helsinki), among them the junctions where the collisions of plain SUMO runs happ
 ``geometric_prohibitions`` finds every pair of connections of a junction whose paths (the internal lanes plus
 the ends of the lanes they join, where a car's body still is) come closer than a car's width plus a margin
 without a foe relation, and returns a netconvert ``<prohibition>`` for it: the lower-ranked movement
-yields to the higher-ranked one (major before minor, straight before right before left before U-turn).
+yields to the higher-ranked one (major before minor, straight before right before left before U-turn; in
+left-hand traffic straight before left before right).
 ``turnaround_deletions`` removes U-turns at junctions that are not dead ends (netconvert's turnarounds, turns
 onto another road that reverse the heading within a car's length, and turns back to the junction just left
 within a car's turning half circle): on a two-lane street a car cannot turn on the spot, and SUMO's
@@ -42,7 +43,10 @@ VEHICLE_WIDTH_M = 1.8  # the widest SCV body (SUMO's passenger default) [m]
 CLEARANCE_MARGIN_M = 0.3  # paths closer than width + margin conflict [m]
 LANE_END_M = 3.0  # how much of the incoming / outgoing lane a car at the junction still covers [m]
 
+# straight before the turn to the kerb side before the one across the oncoming lanes before a U-turn: in
+# right-hand traffic s, R, r, L, l, t (left-hand traffic mirrors the turns: MIRRORED_DIR)
 _DIR_RANK = {"s": 0, "R": 1, "r": 2, "L": 3, "l": 4, "t": 5}
+MIRRORED_DIR = {"r": "l", "R": "L", "l": "r", "L": "R"}
 _MAJOR = set("MOGgs=w")  # link states of movements that do not yield by default
 
 
@@ -52,9 +56,10 @@ class _Conn:
     from_lane: str
     to_edge: str
     to_lane: str
-    direction: str
+    direction: str  # SUMO's (l: a turn to the left, whichever side traffic keeps to)
     state: str
     chain: list[str] = field(default_factory=list)
+    lefthand: bool = False  # the network's traffic keeps to the left
 
 
 def _shape(s: str) -> list[tuple[float, float]]:
@@ -73,6 +78,7 @@ def _read(net_file: Path):
 @functools.lru_cache(maxsize=1)
 def _parse(net_file: str, _mtime_ns: int, _size: int):
     root = ET.parse(net_file).getroot()
+    lefthand = root.get("lefthand") == "true"
     shapes: dict[str, list] = {}
     for edge in root.iter("edge"):
         for lane in edge.iter("lane"):
@@ -88,7 +94,7 @@ def _parse(net_file: str, _mtime_ns: int, _size: int):
         if not via:
             continue
         conns.append(_Conn(frm, f"{frm}_{c.get('fromLane')}", c.get("to", ""), f"{c.get('to')}_{c.get('toLane')}",
-                           c.get("dir", ""), c.get("state", ""), [via]))  # fmt: skip
+                           c.get("dir", ""), c.get("state", ""), [via], lefthand))  # fmt: skip
     by_lane: dict[str, _Conn] = {}
     for c in conns:
         while c.chain[-1] in cont:
@@ -123,7 +129,8 @@ def _cut(shape, length: float, from_end: bool):
 
 
 def _rank(c: _Conn) -> tuple:
-    return (0 if c.state in _MAJOR else 1, _DIR_RANK.get(c.direction, 6))
+    turn = MIRRORED_DIR.get(c.direction, c.direction) if c.lefthand else c.direction
+    return (0 if c.state in _MAJOR else 1, _DIR_RANK.get(turn, 6))
 
 
 def _ref(c: _Conn) -> str:
@@ -320,7 +327,8 @@ def _path(shapes, c: _Conn, lead_in_m: float = 0.0, lead_out_m: float = 0.0):
 
 
 def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2 + CLEARANCE_MARGIN_M):
-    """``contPos`` for left turns whose waiting car would stand in the way of the movements it waits for.
+    """``contPos`` for turns across oncoming traffic (left turns in right-hand traffic) whose waiting car
+    would stand in the way of the movements it waits for.
 
     A turn that crosses oncoming traffic waits inside the junction at an internal junction; netconvert places
     it where the turn's centre line meets the foe lanes, assuming the two cross at a right angle. Where they

@@ -24,6 +24,7 @@ from xml.sax.saxutils import quoteattr
 from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
 from cosim.scenario.conflicts import (
+    MIRRORED_DIR,
     approach_end_offsets,
     conflict_extents,
     crossing_merge_deletions,
@@ -62,7 +63,13 @@ COMMON_OPTIONS = [
 TLS_TYPE = "actuated"
 
 
-def pass1_options(osm: Path, out: Path) -> list[str]:
+def side_options(lefthand: bool) -> list[str]:
+    """netconvert builds right-hand traffic unless told otherwise (every pass: a pass reading a network
+    does not keep it)."""
+    return ["--lefthand", "true"] if lefthand else []
+
+
+def pass1_options(osm: Path, out: Path, lefthand: bool = False) -> list[str]:
     return [
         "--osm-files", str(osm),
         "--type-files", str(OPTIONS_DIR / "motorized.typ.xml"),
@@ -94,6 +101,7 @@ def pass1_options(osm: Path, out: Path) -> list[str]:
         "--ignore-widths", "true",
         "--geometry.remove", "true",
         *COMMON_OPTIONS,
+        *side_options(lefthand),
         "--output-file", str(out),
     ]  # fmt: skip
 
@@ -232,24 +240,30 @@ _ARROW_DIRS = {
 }  # fmt: skip
 
 
-def turn_lane_deletions(edge) -> list[str]:
+def _arrow_dirs(arrow: str, lefthand: bool) -> set[str]:
+    """The SUMO link directions an OSM turn arrow permits (a U-turn goes with the turn across the oncoming
+    lanes: left in right-hand traffic, right in left-hand traffic)."""
+    dirs = _ARROW_DIRS.get(arrow, {"s", "l", "r", "L", "R", "t"})
+    if lefthand and arrow in ("left", "sharp_left", "right", "sharp_right"):
+        dirs = (dirs - {"t"}) | ({"t"} if "right" in arrow else set())
+    return dirs
+
+
+def turn_lane_deletions(edge, lefthand: bool = False) -> list[str]:
     """Connections that contradict the edge's OSM ``turn:lanes`` arrows (netconvert uses them only as a hint).
 
-    OSM lists lanes left to right, SUMO indexes them right to left. A connection is kept when its lane has
-    no arrow ("none"/empty), and an outgoing edge never loses its last connection.
+    OSM lists lanes left to right; SUMO indexes them from the kerb: right to left in right-hand traffic, left
+    to right in left-hand traffic. A connection is kept when its lane has no arrow ("none"/empty), and an
+    outgoing edge never loses its last connection.
     """
     tokens = edge.getParams().get("turn:lanes", "").split("|")
     car_lanes = [lane for lane in edge.getLanes() if lane.allows("passenger")]
     if len(tokens) != len(car_lanes) or len(car_lanes) != edge.getLaneNumber():
         return []
     allowed = []
-    for tok in reversed(tokens):
+    for tok in tokens if lefthand else reversed(tokens):
         arrows = [a for a in tok.split(";") if a and a != "none"]
-        allowed.append(
-            set().union(*(_ARROW_DIRS.get(a, {"s", "l", "r", "L", "R", "t"}) for a in arrows))
-            if arrows
-            else None
-        )
+        allowed.append(set().union(*(_arrow_dirs(a, lefthand) for a in arrows)) if arrows else None)
     deletions = []
     for to_edge, conns in sorted(edge.getOutgoing().items(), key=lambda kv: kv[0].getID()):
         bad = [c for c in conns if allowed[c.getFromLane().getIndex()] is not None
@@ -388,12 +402,13 @@ def _share(duration_s: float | None, n: int) -> float | None:
     return None if duration_s is None else max(MIN_GREEN_S, round(duration_s / n))
 
 
-def split_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
+def split_signal_plans(net, lefthand: bool = False) -> dict[str, dict[str, list[SignalPhase]]]:
     """The plans ``split_permissive_phases`` changes: light id -> programme id -> phases. Lights that control
     several junctions (tls.join) keep their plan, and so does a light with another light at the end of a
     short road (``SHORT_LINK_M``): a green for one approach at a time is too short to empty a queue into a
     road that holds a few cars and that the neighbour's plan empties at its own times (Helsinki 30471502#2
-    into the 30-m 30259739#0: the queue stood through every green for whole experiment phases)."""
+    into the 30-m 30259739#0: the queue stood through every green for whole experiment phases). In
+    left-hand traffic the turns are mirrored first: the one across the oncoming lanes is the right turn."""
     plans: dict[str, dict[str, list[SignalPhase]]] = {}
     for tls in sorted(net.getTrafficLights(), key=lambda t: t.getID()):
         conns = tls.getConnections()
@@ -403,6 +418,8 @@ def split_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
         links = {}
         for inl, _, i in conns:
             direction = next((c.getDirection() for c in inl.getOutgoing() if c.getTLLinkIndex() == i), "s")
+            if lefthand:
+                direction = MIRRORED_DIR.get(direction, direction)
             links[i] = (inl.getEdge().getID(), inl.getID(), direction)
         for program_id, program in tls.getPrograms().items():
             phases = [SignalPhase(ph.duration, ph.state, _dur(ph.minDur), _dur(ph.maxDur))
@@ -470,7 +487,8 @@ def give_way_passage_speed(conn, approach_mps: float) -> float:
     return max(approach_mps, math.hypot(x1 - x0, y1 - y0) / GIVE_WAY_PASSAGE_MAX_S)
 
 
-def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path):
+def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path,
+                  lefthand: bool = False):  # fmt: skip
     """Write node / edge / connection patch files for pass 2; returns them and the sign summary."""
     junction_kind: dict[str, str] = {}
     signed_by_junction: dict[str, set[str]] = defaultdict(set)
@@ -516,7 +534,7 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
                         )
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getParams().get("turn:lanes"):
-            cons.extend(turn_lane_deletions(edge))
+            cons.extend(turn_lane_deletions(edge, lefthand))
         if edge.getParams().get("service") in NOT_THROUGH_SERVICE:
             edges[edge.getID()] = " ".join(filter(None, (edges.get(edge.getID()), f'disallow="{NO_CARS}"')))
     tls_approaches = [e.getID() for n in net.getNodes() if n.getType() == "traffic_light"
@@ -653,10 +671,14 @@ def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
         raise CosimError(f"{tool} failed on {osm_path}: {first if isinstance(first, str) else first[0]}")
 
 
-def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> NetworkBuild:
-    """Run both netconvert passes into ``workdir``; returns the final network and the sign mapping."""
+def build_network(
+    osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path, *, lefthand: bool = False
+) -> NetworkBuild:
+    """Run both netconvert passes into ``workdir``; returns the final network and the sign mapping.
+    ``lefthand``: traffic keeps to the left (``cosim.scenario.driving_side``)."""
     pass1 = workdir / "pass1.net.xml"
-    run1 = run_tool("netconvert", pass1_options(osm.path, pass1))
+    common = [*COMMON_OPTIONS, *side_options(lefthand)]
+    run1 = run_tool("netconvert", pass1_options(osm.path, pass1, lefthand))
     (workdir / "netconvert.log").write_text(run1.log)
     _check("netconvert", run1, osm.path)
     net1 = read_network(pass1, programs=True)
@@ -672,7 +694,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         joined = workdir / "joined.net.xml"
         run_join = run_tool("netconvert", ["--sumo-net-file", str(pass1), "--node-files", str(join_file),
                                         "--tls.default-type", TLS_TYPE, "--tls.layout", "opposites",
-                                        *COMMON_OPTIONS, "--offset.disable-normalization", "true",
+                                        *common, "--offset.disable-normalization", "true",
                                         "--output-file", str(joined)])  # fmt: skip
         with (workdir / "netconvert.log").open("a") as fh:
             fh.write("\n--- pass 1b (one crossing, one junction) ---\n" + run_join.log)
@@ -681,7 +703,9 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         join_file.unlink()
         net1 = read_network(pass1, programs=True)
     placements = place_signs(net1, osm)
-    files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
+    files, junction_kind, signed, tls_approaches = write_patches(
+        net1, placements, behaviour, workdir, lefthand
+    )
     fix_log = workdir / "junction_fixes.txt"
     fix_log.unlink(missing_ok=True)
     ends = workdir / "ends.edg.xml"
@@ -691,7 +715,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
     run2 = run_tool(
         "netconvert",
         ["--sumo-net-file", str(pass1), "--node-files", str(files["nod"]), "--edge-files", edge_files,
-         "--connection-files", str(files["con"]), *COMMON_OPTIONS,
+         "--connection-files", str(files["con"]), *common,
          "--offset.disable-normalization", "true",  # keep pass 1's coordinates (signs, buildings)
          "--output-file", str(final)],
     )  # fmt: skip
@@ -715,7 +739,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         fixed = workdir / "fixed.net.xml"
         edge_opts = ["--edge-files", str(ends)] if ends.exists() else []
         run = run_tool("netconvert", ["--sumo-net-file", str(final), "--connection-files", str(con), *edge_opts,
-                                      *COMMON_OPTIONS, "--offset.disable-normalization", "true",
+                                      *common, "--offset.disable-normalization", "true",
                                       "--output-file", str(fixed)])  # fmt: skip
         with (workdir / "netconvert.log").open("a") as fh:
             fh.write(f"\n--- junction fixes, round {i + 2} ---\n" + run.log)
@@ -724,7 +748,7 @@ def build_network(osm: OsmInfo, behaviour: ScvBehaviour, workdir: Path) -> Netwo
         con.unlink()
         ends.unlink(missing_ok=True)
         runs.append((f"fixes{i + 2}", run))
-    plans = split_signal_plans(read_network(final, programs=True))
+    plans = split_signal_plans(read_network(final, programs=True), lefthand)
     write_signal_plans(final, plans)
     fixes["signal_plans_split"] = len(plans)
     # last: netconvert drops <conflict> elements when it reads a network

@@ -8,6 +8,7 @@ node coordinates needed to project them onto the network.
 from __future__ import annotations
 
 import gzip
+import math
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,6 +52,7 @@ class OsmInfo:
     sign_ways: dict[str, list[str]]
     node_coords: dict[str, tuple[float, float]]  # lat, lon of the nodes of sign_ways
     oneway_ways: int
+    centre: tuple[float, float] | None = None  # lat, lon of the middle of the nodes' extent
 
     @property
     def n_drivable_ways(self) -> int:
@@ -95,6 +97,8 @@ def read_osm(path: str | Path) -> OsmInfo:
     way_nodes: dict[str, list[str]] = {}
     highway_counts: dict[str, int] = {}
     n_nodes = n_ways = n_buildings = oneway = 0
+    lat_lo = lon_lo = math.inf
+    lat_hi = lon_hi = -math.inf
     bounds = None
     root_seen = False
     try:
@@ -114,6 +118,8 @@ def read_osm(path: str | Path) -> OsmInfo:
                     nid = elem.get("id")
                     lat, lon = float(elem.get("lat")), float(elem.get("lon"))
                     coords[nid] = (lat, lon)
+                    lat_lo, lat_hi = min(lat_lo, lat), max(lat_hi, lat)
+                    lon_lo, lon_hi = min(lon_lo, lon), max(lon_hi, lon)
                     if len(elem):
                         tags = {t.get("k"): t.get("v") for t in elem.iter("tag")}
                         kind = _classify(tags)
@@ -160,7 +166,7 @@ def read_osm(path: str | Path) -> OsmInfo:
         path=path, bounds=bounds, n_nodes=n_nodes, n_ways=n_ways, n_buildings=n_buildings,
         highway_counts=highway_counts, signs=signs, sign_ways=way_nodes,
         node_coords={n: coords[n] for refs in way_nodes.values() for n in refs if n in coords},
-        oneway_ways=oneway,
+        oneway_ways=oneway, centre=((lat_lo + lat_hi) / 2, (lon_lo + lon_hi) / 2) if n_nodes else None,
     )  # fmt: skip
     if info.n_drivable_ways == 0:
         raise CosimError(

@@ -20,7 +20,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 from xml.sax.saxutils import quoteattr
 
-SIGN_SIDE_OFFSET_M = 1.0  # from the right edge of the road
+SIGN_SIDE_OFFSET_M = 1.0  # from the kerb-side edge of the road (the right one in right-hand traffic)
 SPEED_CHANGE_MIN_MPS = 0.5
 SIGN_KINDS = (
     "stop",
@@ -49,14 +49,15 @@ def _heading_deg(dx: float, dy: float) -> float:
     return math.degrees(math.atan2(dx, dy)) % 360.0
 
 
-def _roadside(edge, at_end: bool) -> tuple[float, float, float]:
-    """Point beside the right edge of the road at the start or end of ``edge``, and the travel heading."""
+def _roadside(edge, at_end: bool, lefthand: bool = False) -> tuple[float, float, float]:
+    """Point beside the kerb-side edge of the road (right, or left in left-hand traffic) at the start or end
+    of ``edge``, and the travel heading."""
     shape = edge.getShape()
     (x0, y0), (x1, y1) = (shape[-2][:2], shape[-1][:2]) if at_end else (shape[0][:2], shape[1][:2])
     n = math.hypot(x1 - x0, y1 - y0) or 1.0
     ux, uy = (x1 - x0) / n, (y1 - y0) / n
     half_width = sum(lane.getWidth() for lane in edge.getLanes()) / 2
-    off = half_width + SIGN_SIDE_OFFSET_M
+    off = (half_width + SIGN_SIDE_OFFSET_M) * (-1.0 if lefthand else 1.0)
     px, py = (x1, y1) if at_end else (x0, y0)
     return px + uy * off, py - ux * off, _heading_deg(ux, uy)
 
@@ -78,8 +79,13 @@ def _is_oneway(edge) -> bool:
     return not any(e.getToNode() is frm for e in to.getOutgoing())
 
 
-def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> list[Sign]:
+def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs, *, lefthand: bool = False
+                 ) -> list[Sign]:  # fmt: skip
     signs: list[Sign] = []
+
+    def _roadside_here(edge, at_end: bool) -> tuple[float, float, float]:
+        return _roadside(edge, at_end, lefthand)
+
     # explicit stop / give-way: on each governed approach (an approach sign) or each minor approach
     from cosim.scenario.network import _minor_incoming
 
@@ -92,10 +98,10 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
             else [e for e in node.getIncoming() if e.getFunction() != "internal"]
         )
         for edge in approaches:
-            x, y, h = _roadside(edge, at_end=True)
+            x, y, h = _roadside_here(edge, at_end=True)
             signs.append(Sign(kind, x, y, h, edge.getID(), source="osm"))
     for eid in tls_approaches:
-        x, y, h = _roadside(net.getEdge(eid), at_end=True)
+        x, y, h = _roadside_here(net.getEdge(eid), at_end=True)
         signs.append(Sign("traffic_light", x, y, h, eid, source="osm"))
     # implicit speed limits and one-way / no-entry signs, junction by junction
     for node in net.getNodes():
@@ -107,16 +113,18 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
                 c.getFrom() for e in incoming for c in e.getConnections(out) if c.getDirection() == "s"
             ]
             if any(abs(e.getSpeed() - out.getSpeed()) > SPEED_CHANGE_MIN_MPS for e in continued):
-                x, y, h = _roadside(out, at_end=False)
+                x, y, h = _roadside_here(out, at_end=False)
                 signs.append(
                     Sign("speed_limit", x, y, h, out.getID(), round(out.getSpeed() * 3.6), _speed_source(out))
                 )
             if two_way_here and _is_oneway(out) and len(incoming) + len(outgoing) > 2:
-                x, y, h = _roadside(out, at_end=False)
+                x, y, h = _roadside_here(out, at_end=False)
                 signs.append(Sign("one_way", x, y, h, out.getID(), source="oneway"))
         for inc in incoming:
             if two_way_here and _is_oneway(inc) and len(incoming) + len(outgoing) > 2:
-                x, y, h = _roadside(inc, at_end=True)  # faces drivers who would enter against the one-way
+                x, y, h = _roadside_here(
+                    inc, at_end=True
+                )  # faces drivers who would enter against the one-way
                 signs.append(Sign("no_entry", x, y, (h + 180.0) % 360.0, inc.getID(), source="oneway"))
     # city limits from OSM nodes: on the nearest edges, both directions
     for s in osm_signs:
@@ -128,7 +136,7 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
         for edge, _ in near:
             if edge.getFunction() == "internal":
                 continue
-            _, _, h = _roadside(edge, at_end=False)
+            _, _, h = _roadside_here(edge, at_end=False)
             key = round(h / 90.0) % 4
             if key in seen_dirs or (key + 2) % 4 in seen_dirs and len(seen_dirs) >= 2:
                 continue
