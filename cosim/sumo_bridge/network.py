@@ -14,7 +14,21 @@ from pathlib import Path
 
 def read_network(net_file: str | Path, *, internal: bool = False, programs: bool = False):
     """The network of ``net_file`` (a ``sumolib.net.Net``); ``internal``: with the junctions' internal
-    lanes (route geometry through junctions needs them); ``programs``: with the traffic lights' plans."""
+    lanes (route geometry through junctions needs them); ``programs``: with the traffic lights' plans.
+    Its ``lefthand`` attribute says whether traffic keeps to the left (sumolib does not read it)."""
     import sumolib
 
-    return sumolib.net.readNet(str(net_file), withInternal=internal, withPrograms=programs)
+    net = sumolib.net.readNet(str(net_file), withInternal=internal, withPrograms=programs)
+    net.lefthand = is_lefthand(net_file)
+    return net
+
+
+def is_lefthand(net_file: str | Path) -> bool:
+    """Whether the network file's traffic keeps to the left (``<net lefthand="true">``, netconvert's
+    ``--lefthand``)."""
+    from xml.etree import ElementTree as ET
+
+    for _, elem in ET.iterparse(str(net_file), events=("start",)):
+        if elem.tag == "net":
+            return elem.get("lefthand") == "true"
+    return False

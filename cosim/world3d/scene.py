@@ -74,7 +74,8 @@ class SceneParams:
     max_height: int = 720  # [px]
     scv_length_m: float = 4.6  # [m] visual length of SCV bodies (SUMO passenger cars are 5 m incl. slack)
     ego_rgba: tuple[float, float, float, float] = (0.85, 0.12, 0.10, 1.0)
-    driver_eye_m: tuple[float, float, float] = (-0.25, 0.37, 1.22)  # [m] eye in the ego frame (x fwd, y left)
+    # [m] eye in the ego frame (x fwd, y left): the left seat; mirrored where traffic keeps left
+    driver_eye_m: tuple[float, float, float] = (-0.25, 0.37, 1.22)
     driver_fovy_deg: float = 50.0  # vertical field of view of the driver camera
     chase_distance_m: float = 9.0  # [m] chase camera behind the ego centre
     chase_height_m: float = 3.4  # [m]
@@ -147,14 +148,15 @@ def _color_of(vehicle_id: str) -> tuple[float, float, float, float]:
 
 
 def _roadside(
-    shape: np.ndarray, half_width_m: float, side_m: float, at_end: bool
+    shape: np.ndarray, half_width_m: float, side_m: float, at_end: bool, lefthand: bool = False
 ) -> tuple[float, float, float]:
-    """Point beside the right edge of a road at its start or end, and the travel yaw [rad]."""
+    """Point beside the kerb-side edge of a road (right; left in left-hand traffic) at its start or end, and
+    the travel yaw [rad]."""
     (x0, y0), (x1, y1) = (shape[-2], shape[-1]) if at_end else (shape[0], shape[1])
     n = math.hypot(x1 - x0, y1 - y0) or 1.0
     ux, uy = (x1 - x0) / n, (y1 - y0) / n
     px, py = (x1, y1) if at_end else (x0, y0)
-    off = half_width_m + side_m
+    off = (half_width_m + side_m) * (-1.0 if lefthand else 1.0)
     return px + uy * off, py - ux * off, math.atan2(uy, ux)
 
 
@@ -502,7 +504,7 @@ def _traffic_lights(net, origin: np.ndarray) -> tuple[list[Approach], geo.MeshDa
         e = edges[eid]
         shape = np.asarray([q[:2] for q in e.getShape()], dtype=np.float64) - origin
         half = 0.5 * sum(lane.getWidth() for lane in e.getLanes())
-        x, y, yaw = _roadside(shape, half, 0.8, at_end=True)
+        x, y, yaw = _roadside(shape, half, 0.8, at_end=True, lefthand=getattr(net, "lefthand", False))
         facing = yaw + math.pi
         fx, fy = math.cos(facing), math.sin(facing)
         housings.append(
@@ -651,6 +653,8 @@ def build_scene(scenario, params: SceneParams | None = None, *, car=None, net=No
         car_body(f"car{i}", "scv", (0.7, 0.7, 0.7, 1))
     ego = car_body("ego", "egocar", p.ego_rgba)
     eye = np.array(p.driver_eye_m)
+    if getattr(net, "lefthand", False):  # where traffic keeps left the driver sits on the right
+        eye[1] = -eye[1]
     ego.add_camera(name="driver", pos=list(eye), quat=list(_camera_quat(np.array([1.0, 0.0, -0.03]))),
                    fovy=p.driver_fovy_deg)  # fmt: skip
     pitch = math.radians(p.chase_pitch_deg)

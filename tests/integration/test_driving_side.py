@@ -16,6 +16,7 @@ from cosim.scenario import build_scenario
 from cosim.scenario.build import ScenarioConfig
 from cosim.scenario.driving_side import resolve
 from cosim.scenario.network import turn_lane_deletions
+from cosim.sumo_bridge.network import read_network
 
 CAMBRIDGE_UK = (52.2053, 0.1218)
 
@@ -76,6 +77,7 @@ def test_a_town_in_the_uk_keeps_left_and_one_in_germany_right(tmp_path):
     assert de.report["network"]["driving_side"].startswith("right (DE"), de.report["network"]["driving_side"]
     assert ET.parse(uk.net_file).getroot().get("lefthand") == "true"
     assert ET.parse(de.net_file).getroot().get("lefthand") is None
+    assert read_network(uk.net_file).lefthand and not read_network(de.net_file).lefthand
     # the eastbound lanes lie left of the road's axis in the UK, right of it in Germany
     assert _eastbound_lane_y(uk, uk_map) > 0.5 and _eastbound_lane_y(de, de_map) < -0.5
     # the setting overrides where the extract lies
@@ -176,3 +178,18 @@ def test_the_turn_across_the_oncoming_lanes_yields_on_either_side():
     assert rank("r", False) < rank("l", False)
     assert rank("l", True) < rank("r", True)
     assert rank("s", True) < rank("l", True) and rank("r", True) < rank("t", True)
+
+
+def test_the_3d_view_seats_the_driver_on_the_right_where_traffic_keeps_left(tmp_path):
+    import mujoco
+
+    from cosim.world3d.scene import build_scene
+
+    uk = _build(crossroads(origin=CAMBRIDGE_UK), tmp_path, "uk")
+    de = _build(crossroads(), tmp_path, "de")
+
+    def eye_y(scn):
+        m = build_scene(scn).model
+        return float(m.cam_pos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "driver")][1])
+
+    assert eye_y(uk) < 0 < eye_y(de)  # y: to the car's left
