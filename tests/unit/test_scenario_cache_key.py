@@ -14,10 +14,15 @@ def test_a_change_to_the_pipeline_code_builds_anew(tmp_path, monkeypatch):
     step = tmp_path / "step.py"
     step.write_text("CLEARANCE_M = 2.6\n")
     monkeypatch.setattr(build, "PIPELINE_SOURCES", (step,))
-    before = build._network_key("osm-sha", ScvBehaviour())
-    assert build._network_key("osm-sha", ScvBehaviour()) == before  # the same code: the cached network
+    before = build._network_key("osm-sha", ScvBehaviour(), "auto")
+    assert build._network_key("osm-sha", ScvBehaviour(), "auto") == before  # the same code: the cached network
     step.write_text("CLEARANCE_M = 2.0\n")
-    assert build._network_key("osm-sha", ScvBehaviour()) != before
+    assert build._network_key("osm-sha", ScvBehaviour(), "auto") != before
+
+
+def test_the_driving_side_setting_is_in_the_key():
+    keys = {side: build._network_key("osm-sha", ScvBehaviour(), side) for side in ("auto", "right", "left")}
+    assert len(set(keys.values())) == 3
 
 
 def test_every_module_of_the_scenario_pipeline_is_in_the_key():
