@@ -15,7 +15,8 @@ def test_a_change_to_the_pipeline_code_builds_anew(tmp_path, monkeypatch):
     step.write_text("CLEARANCE_M = 2.6\n")
     monkeypatch.setattr(build, "PIPELINE_SOURCES", (step,))
     before = build._network_key("osm-sha", ScvBehaviour(), "auto")
-    assert build._network_key("osm-sha", ScvBehaviour(), "auto") == before  # the same code: the cached network
+    # the same code: the cached network
+    assert build._network_key("osm-sha", ScvBehaviour(), "auto") == before
     step.write_text("CLEARANCE_M = 2.0\n")
     assert build._network_key("osm-sha", ScvBehaviour(), "auto") != before
 
