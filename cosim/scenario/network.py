@@ -64,8 +64,8 @@ TLS_TYPE = "actuated"
 
 
 def side_options(lefthand: bool) -> list[str]:
-    """netconvert builds right-hand traffic unless told otherwise (every pass: a pass reading a network
-    does not keep it)."""
+    """netconvert builds right-hand traffic unless told otherwise; told in every pass, so that none depends
+    on what netconvert keeps of the network it reads."""
     return ["--lefthand", "true"] if lefthand else []
 
 
