@@ -95,6 +95,7 @@ class Edge:
     def __init__(self, eid: str, lanes: list[Lane], node: Node, *, from_node: Node | None = None,
                  length_m: float = 100.0):  # fmt: skip
         self.eid, self.lanes, self.node, self.out, self.length_m = eid, lanes, node, {}, length_m
+        self.params: dict[str, str] = {}  # OSM's tags netconvert keeps (e.g. turn:lanes)
         self.from_node = from_node if from_node is not None else Node(f"from_{eid}", type="priority")
         node.incoming.append(self)
         self.from_node.outgoing.append(self)
@@ -127,6 +128,12 @@ class Edge:
 
     def getLanes(self):
         return self.lanes
+
+    def getLaneNumber(self):
+        return len(self.lanes)
+
+    def getParams(self):
+        return self.params
 
 
 class _Phase:

@@ -9,6 +9,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 import sumolib
+from fake_net import Conn, Edge
 from osm_factory import OsmSketch, crossroads
 from testpaths import ROOT
 
@@ -86,66 +87,16 @@ def test_a_town_in_the_uk_keeps_left_and_one_in_germany_right(tmp_path):
     assert _eastbound_lane_y(forced, de_map) > 0.5
 
 
-class _Lane:
-    def __init__(self, edge, index):
-        self.edge, self.index = edge, index
-
-    def getIndex(self):
-        return self.index
-
-    def allows(self, vclass):
-        return True
-
-
-class _Conn:
-    def __init__(self, lane, to_lane, direction):
-        self.lane, self.to_lane, self.direction = lane, to_lane, direction
-
-    def getFromLane(self):
-        return self.lane
-
-    def getToLane(self):
-        return self.to_lane
-
-    def getDirection(self):
-        return self.direction
-
-
-class _Edge:
-    """The parts of a sumolib edge ``turn_lane_deletions`` reads: a two-lane approach whose both lanes
-    lead to the left-turn road and straight on."""
-
-    def __init__(self, eid, turn_lanes, n_lanes=2):
-        self.eid, self.lanes, self.params = (
-            eid,
-            [_Lane(self, i) for i in range(n_lanes)],
-            {"turn:lanes": turn_lanes},
-        )
-        self.out = {}
-
-    def getID(self):
-        return self.eid
-
-    def getParams(self):
-        return self.params
-
-    def getLanes(self):
-        return self.lanes
-
-    def getLaneNumber(self):
-        return len(self.lanes)
-
-    def getOutgoing(self):
-        return self.out
-
-
 def test_turn_lane_arrows_are_read_from_the_kerb_side():
     """OSM lists lanes left to right; SUMO counts them from the kerb: lane 0 is the right lane in right-hand
     traffic, the left one in left-hand traffic. "left|through" lets the left turn go from OSM's first lane."""
-    approach, left_road, ahead = _Edge("in", "left|through"), _Edge("left", ""), _Edge("ahead", "")
+    approach, left_road, ahead = (
+        Edge.straight(eid, 0.0, 100.0, n) for eid, n in (("in", 2), ("left", 1), ("ahead", 2))
+    )
+    approach.params["turn:lanes"] = "left|through"
     approach.out = {
-        left_road: [_Conn(approach.lanes[i], left_road.lanes[0], "l") for i in (0, 1)],
-        ahead: [_Conn(approach.lanes[i], ahead.lanes[i], "s") for i in (0, 1)],
+        left_road: [Conn(approach.lanes[i], left_road.lanes[0], direction="l") for i in (0, 1)],
+        ahead: [Conn(approach.lanes[i], ahead.lanes[i], direction="s") for i in (0, 1)],
     }
 
     def deleted(lefthand):
