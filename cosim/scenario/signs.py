@@ -14,6 +14,7 @@ speed limits) and ``source``; sumo-gui shows them and ``load_signs`` reads them 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -82,9 +83,7 @@ def _is_oneway(edge) -> bool:
 def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs, *, lefthand: bool = False
                  ) -> list[Sign]:  # fmt: skip
     signs: list[Sign] = []
-
-    def _roadside_here(edge, at_end: bool) -> tuple[float, float, float]:
-        return _roadside(edge, at_end, lefthand)
+    roadside = functools.partial(_roadside, lefthand=lefthand)
 
     # explicit stop / give-way: on each governed approach (an approach sign) or each minor approach
     from cosim.scenario.network import _minor_incoming
@@ -98,10 +97,10 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs, *, l
             else [e for e in node.getIncoming() if e.getFunction() != "internal"]
         )
         for edge in approaches:
-            x, y, h = _roadside_here(edge, at_end=True)
+            x, y, h = roadside(edge, at_end=True)
             signs.append(Sign(kind, x, y, h, edge.getID(), source="osm"))
     for eid in tls_approaches:
-        x, y, h = _roadside_here(net.getEdge(eid), at_end=True)
+        x, y, h = roadside(net.getEdge(eid), at_end=True)
         signs.append(Sign("traffic_light", x, y, h, eid, source="osm"))
     # implicit speed limits and one-way / no-entry signs, junction by junction
     for node in net.getNodes():
@@ -113,18 +112,16 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs, *, l
                 c.getFrom() for e in incoming for c in e.getConnections(out) if c.getDirection() == "s"
             ]
             if any(abs(e.getSpeed() - out.getSpeed()) > SPEED_CHANGE_MIN_MPS for e in continued):
-                x, y, h = _roadside_here(out, at_end=False)
+                x, y, h = roadside(out, at_end=False)
                 signs.append(
                     Sign("speed_limit", x, y, h, out.getID(), round(out.getSpeed() * 3.6), _speed_source(out))
                 )
             if two_way_here and _is_oneway(out) and len(incoming) + len(outgoing) > 2:
-                x, y, h = _roadside_here(out, at_end=False)
+                x, y, h = roadside(out, at_end=False)
                 signs.append(Sign("one_way", x, y, h, out.getID(), source="oneway"))
         for inc in incoming:
             if two_way_here and _is_oneway(inc) and len(incoming) + len(outgoing) > 2:
-                x, y, h = _roadside_here(
-                    inc, at_end=True
-                )  # faces drivers who would enter against the one-way
+                x, y, h = roadside(inc, at_end=True)  # faces drivers who would enter against the one-way
                 signs.append(Sign("no_entry", x, y, (h + 180.0) % 360.0, inc.getID(), source="oneway"))
     # city limits from OSM nodes: on the nearest edges, both directions
     for s in osm_signs:
@@ -136,7 +133,7 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs, *, l
         for edge, _ in near:
             if edge.getFunction() == "internal":
                 continue
-            _, _, h = _roadside_here(edge, at_end=False)
+            _, _, h = roadside(edge, at_end=False)
             key = round(h / 90.0) % 4
             if key in seen_dirs or (key + 2) % 4 in seen_dirs and len(seen_dirs) >= 2:
                 continue
