@@ -78,6 +78,15 @@ def _classify(tags: dict[str, str]) -> str | None:
     return None
 
 
+def _centre(lat_lo, lat_hi, lon_lo, lon_hi, lon360_lo, lon360_hi) -> tuple[float, float]:
+    """(lat, lon) of the middle of the nodes' extent; an extract across the antimeridian (Fiji, Chukotka)
+    spans less in 0..360 degrees than in -180..180."""
+    if lon360_hi - lon360_lo < lon_hi - lon_lo:
+        lon = (lon360_lo + lon360_hi) / 2
+        return (lat_lo + lat_hi) / 2, lon - 360.0 if lon >= 180.0 else lon
+    return (lat_lo + lat_hi) / 2, (lon_lo + lon_hi) / 2
+
+
 def read_osm(path: str | Path) -> OsmInfo:
     """Parse and validate an OSM XML file (plain or gzip). Bad input raises CosimError with one clear line."""
     path = Path(path)
@@ -97,8 +106,8 @@ def read_osm(path: str | Path) -> OsmInfo:
     way_nodes: dict[str, list[str]] = {}
     highway_counts: dict[str, int] = {}
     n_nodes = n_ways = n_buildings = oneway = 0
-    lat_lo = lon_lo = math.inf
-    lat_hi = lon_hi = -math.inf
+    lat_lo = lon_lo = lon360_lo = math.inf
+    lat_hi = lon_hi = lon360_hi = -math.inf
     bounds = None
     root_seen = False
     try:
@@ -120,6 +129,7 @@ def read_osm(path: str | Path) -> OsmInfo:
                     coords[nid] = (lat, lon)
                     lat_lo, lat_hi = min(lat_lo, lat), max(lat_hi, lat)
                     lon_lo, lon_hi = min(lon_lo, lon), max(lon_hi, lon)
+                    lon360_lo, lon360_hi = min(lon360_lo, lon % 360.0), max(lon360_hi, lon % 360.0)
                     if len(elem):
                         tags = {t.get("k"): t.get("v") for t in elem.iter("tag")}
                         kind = _classify(tags)
@@ -166,7 +176,7 @@ def read_osm(path: str | Path) -> OsmInfo:
         path=path, bounds=bounds, n_nodes=n_nodes, n_ways=n_ways, n_buildings=n_buildings,
         highway_counts=highway_counts, signs=signs, sign_ways=way_nodes,
         node_coords={n: coords[n] for refs in way_nodes.values() for n in refs if n in coords},
-        oneway_ways=oneway, centre=((lat_lo + lat_hi) / 2, (lon_lo + lon_hi) / 2) if n_nodes else None,
+        oneway_ways=oneway, centre=_centre(lat_lo, lat_hi, lon_lo, lon_hi, lon360_lo, lon360_hi) if n_nodes else None,
     )  # fmt: skip
     if info.n_drivable_ways == 0:
         raise CosimError(

@@ -144,3 +144,19 @@ def test_the_3d_view_seats_the_driver_on_the_right_where_traffic_keeps_left(tmp_
         return float(m.cam_pos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, "driver")][1])
 
     assert eye_y(uk) < 0 < eye_y(de)  # y: to the car's left
+
+
+def test_an_extract_across_the_antimeridian_is_placed_by_its_own_middle(tmp_path):
+    """Taveuni (Fiji) straddles 180 degrees: its nodes' longitudes run 179.8..180 and -180..-179.9; the
+    middle of -180..180 would be 0 (the Gulf of Guinea), Fiji keeps left."""
+    from cosim.scenario.osm import read_osm
+
+    osm = tmp_path / "taveuni.osm"
+    nodes = [(-16.80, 179.85), (-16.85, 179.99), (-16.90, -179.95), (-16.95, -179.92)]
+    body = "".join(f'<node id="{i + 1}" lat="{lat}" lon="{lon}"/>' for i, (lat, lon) in enumerate(nodes))
+    refs = "".join(f'<nd ref="{i + 1}"/>' for i in range(len(nodes)))
+    osm.write_text(f'<osm version="0.6">{body}<way id="9">{refs}<tag k="highway" v="primary"/></way></osm>')
+    lat, lon = read_osm(osm).centre
+    assert lat == pytest.approx(-16.875) and (lon > 179.9 or lon < -179.9), lon
+    left, how = resolve("auto", (lat, lon))
+    assert left and "FJ" in how, how
