@@ -123,7 +123,8 @@ class _File:
 
 
 def _serve(path: str, chunk_size: int, flush_every_s: float) -> None:
-    """The writer process: apply (method, args) records from stdin to the file until end of input."""
+    """The writer process: apply the lists of (method, args) records from stdin (one per step,
+    ``McapLog.end_step``) to the file until end of input."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the run decides when the log ends
     signal.signal(signal.SIGTERM, signal.SIG_IGN)  # ... also when a service manager stops every process
     out = _File(Path(path), chunk_size, flush_every_s)
@@ -131,13 +132,10 @@ def _serve(path: str, chunk_size: int, flush_every_s: float) -> None:
     try:
         while True:
             try:
-                method, args = pickle.load(stdin)
+                records = pickle.load(stdin)
             except (EOFError, pickle.UnpicklingError):  # closed, or the simulation process is gone (maybe in
                 break  # the middle of a record): finish the file with what came complete
-            if method == "batch":  # a step's records (McapLog.end_step)
-                for m, a in args:
-                    getattr(out, m)(*a)
-            else:
+            for method, args in records:
                 getattr(out, method)(*args)
     finally:
         out.close()
@@ -185,7 +183,7 @@ class McapLog:
             return
         batch, self._batch = self._batch, []
         try:
-            send(self._proc.stdin, ("batch", batch), flush=False)
+            send(self._proc.stdin, batch, flush=False)
         except (BrokenPipeError, OSError):
             raise RuntimeError(f"the log writer of {self.path} stopped (its error is above)") from None
 
