@@ -170,6 +170,7 @@ class Net:
         self.edges = {e.eid: e for e in edges}
         self.traffic_lights = list(traffic_lights)
         self.internal = {lane.lid: lane for lane in internal_lanes}
+        self.lefthand = False  # as cosim.sumo_bridge.network.read_network sets it
 
     def getLane(self, lid):
         return self.internal[lid]

@@ -206,9 +206,7 @@ def _build_network_dir(osm, behaviour: ScvBehaviour, driving_side: str, tmp: Pat
     nb = build_network(osm, behaviour, tmp, lefthand=lefthand)
     t1 = time.perf_counter()
     net = read_network(nb.net_file)
-    signs = derive_signs(
-        net, nb.placements, nb.junction_kind, nb.tls_approaches, osm.signs, lefthand=lefthand
-    )
+    signs = derive_signs(net, nb.placements, nb.junction_kind, nb.tls_approaches, osm.signs)
     write_signs(signs, tmp / "signs.add.xml")
     n_buildings, height_sources, poly_run = build_buildings(osm.path, nb.net_file, tmp / "buildings.poly.xml")
     counts = _network_counts(net)

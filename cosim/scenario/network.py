@@ -402,7 +402,7 @@ def _share(duration_s: float | None, n: int) -> float | None:
     return None if duration_s is None else max(MIN_GREEN_S, round(duration_s / n))
 
 
-def split_signal_plans(net, lefthand: bool = False) -> dict[str, dict[str, list[SignalPhase]]]:
+def split_signal_plans(net) -> dict[str, dict[str, list[SignalPhase]]]:
     """The plans ``split_permissive_phases`` changes: light id -> programme id -> phases. Lights that control
     several junctions (tls.join) keep their plan, and so does a light with another light at the end of a
     short road (``SHORT_LINK_M``): a green for one approach at a time is too short to empty a queue into a
@@ -418,7 +418,7 @@ def split_signal_plans(net, lefthand: bool = False) -> dict[str, dict[str, list[
         links = {}
         for inl, _, i in conns:
             direction = next((c.getDirection() for c in inl.getOutgoing() if c.getTLLinkIndex() == i), "s")
-            if lefthand:
+            if net.lefthand:
                 direction = MIRRORED_DIR.get(direction, direction)
             links[i] = (inl.getEdge().getID(), inl.getID(), direction)
         for program_id, program in tls.getPrograms().items():
@@ -487,8 +487,7 @@ def give_way_passage_speed(conn, approach_mps: float) -> float:
     return max(approach_mps, math.hypot(x1 - x0, y1 - y0) / GIVE_WAY_PASSAGE_MAX_S)
 
 
-def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path,
-                  lefthand: bool = False):  # fmt: skip
+def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour, workdir: Path):
     """Write node / edge / connection patch files for pass 2; returns them and the sign summary."""
     junction_kind: dict[str, str] = {}
     signed_by_junction: dict[str, set[str]] = defaultdict(set)
@@ -534,7 +533,7 @@ def write_patches(net, placements: list[SignPlacement], behaviour: ScvBehaviour,
                         )
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
         if edge.getParams().get("turn:lanes"):
-            cons.extend(turn_lane_deletions(edge, lefthand))
+            cons.extend(turn_lane_deletions(edge, net.lefthand))
         if edge.getParams().get("service") in NOT_THROUGH_SERVICE:
             edges[edge.getID()] = " ".join(filter(None, (edges.get(edge.getID()), f'disallow="{NO_CARS}"')))
     tls_approaches = [e.getID() for n in net.getNodes() if n.getType() == "traffic_light"
@@ -703,9 +702,7 @@ def build_network(
         join_file.unlink()
         net1 = read_network(pass1, programs=True)
     placements = place_signs(net1, osm)
-    files, junction_kind, signed, tls_approaches = write_patches(
-        net1, placements, behaviour, workdir, lefthand
-    )
+    files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
     fix_log = workdir / "junction_fixes.txt"
     fix_log.unlink(missing_ok=True)
     ends = workdir / "ends.edg.xml"
@@ -748,7 +745,7 @@ def build_network(
         con.unlink()
         ends.unlink(missing_ok=True)
         runs.append((f"fixes{i + 2}", run))
-    plans = split_signal_plans(read_network(final, programs=True), lefthand)
+    plans = split_signal_plans(read_network(final, programs=True))
     write_signal_plans(final, plans)
     fixes["signal_plans_split"] = len(plans)
     # last: netconvert drops <conflict> elements when it reads a network

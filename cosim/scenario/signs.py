@@ -80,10 +80,9 @@ def _is_oneway(edge) -> bool:
     return not any(e.getToNode() is frm for e in to.getOutgoing())
 
 
-def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs, *, lefthand: bool = False
-                 ) -> list[Sign]:  # fmt: skip
+def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> list[Sign]:
     signs: list[Sign] = []
-    roadside = functools.partial(_roadside, lefthand=lefthand)
+    roadside = functools.partial(_roadside, lefthand=net.lefthand)
 
     # explicit stop / give-way: on each governed approach (an approach sign) or each minor approach
     from cosim.scenario.network import _minor_incoming

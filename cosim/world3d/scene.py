@@ -504,7 +504,7 @@ def _traffic_lights(net, origin: np.ndarray) -> tuple[list[Approach], geo.MeshDa
         e = edges[eid]
         shape = np.asarray([q[:2] for q in e.getShape()], dtype=np.float64) - origin
         half = 0.5 * sum(lane.getWidth() for lane in e.getLanes())
-        x, y, yaw = _roadside(shape, half, 0.8, at_end=True, lefthand=getattr(net, "lefthand", False))
+        x, y, yaw = _roadside(shape, half, 0.8, at_end=True, lefthand=net.lefthand)
         facing = yaw + math.pi
         fx, fy = math.cos(facing), math.sin(facing)
         housings.append(
@@ -653,7 +653,7 @@ def build_scene(scenario, params: SceneParams | None = None, *, car=None, net=No
         car_body(f"car{i}", "scv", (0.7, 0.7, 0.7, 1))
     ego = car_body("ego", "egocar", p.ego_rgba)
     eye = np.array(p.driver_eye_m)
-    if getattr(net, "lefthand", False):  # where traffic keeps left the driver sits on the right
+    if net.lefthand:  # where traffic keeps left the driver sits on the right
         eye[1] = -eye[1]
     ego.add_camera(name="driver", pos=list(eye), quat=list(_camera_quat(np.array([1.0, 0.0, -0.03]))),
                    fovy=p.driver_fovy_deg)  # fmt: skip
