@@ -879,14 +879,16 @@ def conflict_extents(net_file: Path, min_gap_m: float, car_length_m: float = CAR
             points = [g for g in getattr(crossing, "geoms", [crossing]) if g.geom_type == "Point"]
             if not points:
                 continue
-            s_a = max(paths[i].project(p) for p in points)  # SUMO takes the last crossing
-            s_b = paths[k].project(paths[i].interpolate(s_a))
-            sine = abs(math.sin(_tangent(paths[i], s_a) - _tangent(paths[k], s_b)))
-            width_b = float(lanes[_lane_at(b.chain, shapes, s_b)].get("width", 3.2))
-            size = width_b * (2.0 / max(sine, SUMO_MIN_SIN) - 1.0)
-            # SUMO places the start in geometry and adds the size in lane units
-            sumo_start = scales[i].lane_pos(max(0.0, s_a - size / 2.0))
-            sumo_end = sumo_start + size
+            crossings = sorted(paths[i].project(p) for p in points)
+            sizes = [_conflict_size(paths[i], paths[k], s, b.chain, shapes, lanes) for s in crossings]
+            # SUMO places the start in geometry and adds the size in lane units; it takes the last crossing
+            sumo_start = scales[i].lane_pos(max(0.0, crossings[-1] - sizes[-1] / 2.0))
+            sumo_end = sumo_start + sizes[-1]
+            # paths that cross more than once: the extent starts before the first crossing (SUMO keeps one
+            # crossing per pair of lanes, each lane's last: MSLink::setRequestInformation)
+            first_start = min(
+                scales[i].lane_pos(max(0.0, s - z / 2.0)) for s, z in zip(crossings, sizes, strict=True)
+            )
             # the passing movement's cars sweep its path and the first metres of the road after it
             strip = shapely.LineString(list(paths[k].coords) + _cut(shapes[b.to_lane], LANE_END_M, False)[1:])
             strip = strip.buffer(car_width_m / 2.0, cap_style="flat")
@@ -904,8 +906,8 @@ def conflict_extents(net_file: Path, min_gap_m: float, car_length_m: float = CAR
                 while rear < length and body.touches(rear, strip):
                     rear += CONFLICT_STEP_M
                 end = scales[i].lane_pos(min(rear, length))
-            front = scales[i].geo_pos(sumo_start) - min_gap_m  # where it stops for the passing car
-            start = sumo_start
+            front = scales[i].geo_pos(first_start) - min_gap_m  # where it stops for the passing car
+            start = first_start
             if front > 0.0 and body.touches(front - car_length_m, strip):
                 while front > 0.0 and body.touches(front - car_length_m, strip):
                     front -= CONFLICT_STEP_M
@@ -915,6 +917,15 @@ def conflict_extents(net_file: Path, min_gap_m: float, car_length_m: float = CAR
                     (jid, a, b, round(start, 2), round(end, 2), round(sumo_start, 2), round(sumo_end, 2))
                 )
     return out
+
+
+def _conflict_size(path, foe_path, s: float, foe_chain: list[str], shapes, lanes) -> float:
+    """SUMO's conflict size where ``path`` crosses ``foe_path`` at ``s`` along it: the foe lane's width x
+    (2 / max(sin(angle), 0.2) - 1)."""
+    s_foe = foe_path.project(path.interpolate(s))
+    sine = abs(math.sin(_tangent(path, s) - _tangent(foe_path, s_foe)))
+    width = float(lanes[_lane_at(foe_chain, shapes, s_foe)].get("width", 3.2))
+    return width * (2.0 / max(sine, SUMO_MIN_SIN) - 1.0)
 
 
 class _Body:

@@ -341,6 +341,63 @@ def test_a_car_standing_past_a_crossing_that_bends_alongside_is_waited_for(tmp_p
     assert collisions(net) == 0
 
 
+def test_a_car_is_not_let_through_the_first_of_two_crossings(tmp_path):
+    """SUMO keeps one crossing per pair of internal lanes, each lane's last (MSLink::setRequestInformation).
+    graphhopper's campo-grande extract, cluster_1550538044_1550538067_1663974447: a right turn looping 44 m
+    through the junction crosses the straight movement that yields to it twice; SUMO let the waiting car go
+    once the turning one was inside the junction and past the crossing SUMO knew of, and the two met at the
+    other one (cosim seed 1, 239 s). Here the same geometry: a yielding car M and a car J on a looping turn.
+    With the pipeline's conflict extents, which start before the first crossing, M waits until J is through
+    and then goes."""
+    from cosim.scenario.conflicts import conflict_extents, write_conflict_extents
+    from cosim.sumo_bridge.tools import run_tool
+
+    (tmp_path / "n.nod.xml").write_text(
+        '<nodes><node id="C" x="0" y="0" type="priority" shape="-15,-15 15,-15 15,15 -15,15"/>'
+        '<node id="N0" x="-80" y="80"/><node id="N1" x="80" y="-80"/>'
+        '<node id="M0" x="100" y="5"/><node id="M1" x="-12" y="100"/></nodes>'
+    )
+    road = 'numLanes="1" speed="13.9" spreadType="center"'
+    (tmp_path / "n.edg.xml").write_text(
+        f'<edges><edge id="m_in" from="M0" to="C" priority="3" {road}/>'
+        f'<edge id="m_out" from="C" to="M1" priority="3" {road}/>'
+        f'<edge id="n_in" from="N0" to="C" priority="1" {road}/>'
+        f'<edge id="n_out" from="C" to="N1" priority="1" {road}/></edges>'
+    )
+    # the turn crosses the straight path near the junction's centre and again near the straight's start
+    (tmp_path / "n.con.xml").write_text(
+        '<connections><connection from="n_in" to="n_out" fromLane="0" toLane="0"/>'
+        '<connection from="m_in" to="m_out" fromLane="0" toLane="0" shape="15,5 3,2 -4,-2 -9,4 -11.8,15"/>'
+        '<prohibition prohibitor="m_in->m_out" prohibited="n_in->n_out"/></connections>'
+    )
+    net = tmp_path / "n.net.xml"
+    run = run_tool("netconvert", ["-n", str(tmp_path / "n.nod.xml"), "-e", str(tmp_path / "n.edg.xml"),
+                                  "-x", str(tmp_path / "n.con.xml"), "--no-turnarounds", "true", "-o", str(net)])  # fmt: skip
+    assert run.returncode == 0, run.log
+    (tmp_path / "r.rou.xml").write_text(
+        '<routes><vType id="car" sigma="0" length="5" width="1.8" minGap="2.5"/>'
+        '<vehicle id="M" type="car" depart="0" departPos="60" departSpeed="0"><route edges="n_in n_out"/>'
+        '</vehicle><vehicle id="J" type="car" depart="2" departPos="0" departSpeed="max">'
+        '<route edges="m_in m_out"/></vehicle></routes>'
+    )
+
+    def drive(net_file):
+        out, trips = tmp_path / f"{net_file.stem}.collisions.xml", tmp_path / f"{net_file.stem}.trips.xml"
+        run = run_tool("sumo", ["-n", str(net_file), "-r", str(tmp_path / "r.rou.xml"), "--end", "80",
+                                "--collision.check-junctions", "true", "--collision.action", "warn",
+                                "--collision-output", str(out), "--tripinfo-output", str(trips),
+                                "--step-length", "0.1", "--no-step-log", "true"])  # fmt: skip
+        assert run.returncode == 0, run.log
+        return out.read_text().count("<collision "), trips.read_text().count("<tripinfo ")
+
+    assert drive(net) == (1, 2)  # the premise: SUMO alone lets M into J at the first crossing
+    extents = conflict_extents(net, min_gap_m=2.5)
+    start, end, sumo_start, sumo_end = next(e[3:] for e in extents if e[1].from_edge == "n_in")
+    assert start < sumo_start - 10.0 and end >= sumo_end  # from before the first crossing to past the last
+    write_conflict_extents(net, extents)
+    assert drive(net) == (0, 2)  # M waited, then both arrived
+
+
 def test_a_pushed_shape_never_folds_back():
     """Monaco 25345339: pushes apart that kept a left turn from crossing itself folded its end back and forth,
     and SUMO, meeting the other movement's lane seven times along it, let a car on each go into the other.
