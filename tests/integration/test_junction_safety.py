@@ -276,6 +276,33 @@ def test_no_lane_change_inside_a_junction_into_the_lane_a_slip_road_runs_beside(
     assert sibling_change_bars(no_slip) == ([], [])
 
 
+def _two_road_junction(tmp_path: Path, half_m: float, roads: dict, connections: str) -> Path:
+    """A priority junction C (a square of ``half_m`` each way) where one-lane roads meet: for each ``name`` of
+    ``roads`` (the first is the major road) an edge ``name_in`` from its first point to C and ``name_out``
+    from C to its second; ``connections`` is netconvert's connection file content. Returns the network."""
+    from cosim.sumo_bridge.tools import run_tool
+
+    h = half_m
+    nodes = [f'<node id="C" x="0" y="0" type="priority" shape="-{h},-{h} {h},-{h} {h},{h} -{h},{h}"/>']
+    edges, lane = [], 'numLanes="1" speed="13.9" spreadType="center"'
+    for rank, (name, (start, end)) in enumerate(roads.items()):
+        nodes += [
+            f'<node id="{name}0" x="{start[0]}" y="{start[1]}"/>',
+            f'<node id="{name}1" x="{end[0]}" y="{end[1]}"/>',
+        ]
+        prio = 3 if rank == 0 else 1
+        edges += [f'<edge id="{name}_in" from="{name}0" to="C" priority="{prio}" {lane}/>',
+                  f'<edge id="{name}_out" from="C" to="{name}1" priority="{prio}" {lane}/>']  # fmt: skip
+    (tmp_path / "n.nod.xml").write_text(f"<nodes>{''.join(nodes)}</nodes>")
+    (tmp_path / "n.edg.xml").write_text(f"<edges>{''.join(edges)}</edges>")
+    (tmp_path / "n.con.xml").write_text(f"<connections>{connections}</connections>")
+    net = tmp_path / "n.net.xml"
+    run = run_tool("netconvert", ["-n", str(tmp_path / "n.nod.xml"), "-e", str(tmp_path / "n.edg.xml"),
+                                  "-x", str(tmp_path / "n.con.xml"), "--no-turnarounds", "true", "-o", str(net)])  # fmt: skip
+    assert run.returncode == 0, run.log
+    return net
+
+
 def test_a_car_standing_past_a_crossing_that_bends_alongside_is_waited_for(tmp_path):
     """SUMO clears a car standing past a crossing once its rear is half a conflict size (from the angle at
     the crossing only) beyond it (SUMO issue #12721). A turn that crosses a road at 75 deg and then bends to
@@ -285,27 +312,12 @@ def test_a_car_standing_past_a_crossing_that_bends_alongside_is_waited_for(tmp_p
     from cosim.scenario.conflicts import conflict_extents, write_conflict_extents
     from cosim.sumo_bridge.tools import run_tool
 
-    (tmp_path / "n.nod.xml").write_text(
-        '<nodes><node id="C" x="0" y="0" type="priority" shape="-12,-12 12,-12 12,12 -12,12"/>'
-        '<node id="B0" x="-100" y="0"/><node id="B1" x="100" y="0"/>'
-        '<node id="A0" x="-26.795" y="-100"/><node id="A1" x="100" y="25"/></nodes>'
-    )
-    road = 'numLanes="1" speed="13.9" spreadType="center"'
-    (tmp_path / "n.edg.xml").write_text(
-        f'<edges><edge id="b_in" from="B0" to="C" priority="3" {road}/>'
-        f'<edge id="b_out" from="C" to="B1" priority="3" {road}/>'
-        f'<edge id="a_in" from="A0" to="C" priority="1" {road}/>'
-        f'<edge id="a_out" from="C" to="A1" priority="1" {road}/></edges>'
-    )
-    (tmp_path / "n.con.xml").write_text(
-        '<connections><connection from="b_in" to="b_out" fromLane="0" toLane="0"/>'
+    net = _two_road_junction(
+        tmp_path, 12, {"b": ((-100, 0), (100, 0)), "a": ((-26.795, -100), (100, 25))},
+        '<connection from="b_in" to="b_out" fromLane="0" toLane="0"/>'
         '<connection from="a_in" to="a_out" fromLane="0" toLane="0" keepClear="false" '
-        'shape="-3.2154,-12 0.268,1.0 1.2,1.5 8,1.5 12,3"/></connections>'
-    )
-    net = tmp_path / "n.net.xml"
-    run = run_tool("netconvert", ["-n", str(tmp_path / "n.nod.xml"), "-e", str(tmp_path / "n.edg.xml"),
-                                  "-x", str(tmp_path / "n.con.xml"), "--no-turnarounds", "true", "-o", str(net)])  # fmt: skip
-    assert run.returncode == 0, run.log
+        'shape="-3.2154,-12 0.268,1.0 1.2,1.5 8,1.5 12,3"/>',
+    )  # fmt: skip
     # F's minGap puts its rear 2.4 m past the crossing behind X; E comes along the road at 20 s
     (tmp_path / "r.rou.xml").write_text(
         '<routes><vType id="car" sigma="0" length="5" width="1.8" minGap="2.5"/>'
@@ -352,28 +364,13 @@ def test_a_car_is_not_let_through_the_first_of_two_crossings(tmp_path):
     from cosim.scenario.conflicts import conflict_extents, write_conflict_extents
     from cosim.sumo_bridge.tools import run_tool
 
-    (tmp_path / "n.nod.xml").write_text(
-        '<nodes><node id="C" x="0" y="0" type="priority" shape="-15,-15 15,-15 15,15 -15,15"/>'
-        '<node id="N0" x="-80" y="80"/><node id="N1" x="80" y="-80"/>'
-        '<node id="M0" x="100" y="5"/><node id="M1" x="-12" y="100"/></nodes>'
-    )
-    road = 'numLanes="1" speed="13.9" spreadType="center"'
-    (tmp_path / "n.edg.xml").write_text(
-        f'<edges><edge id="m_in" from="M0" to="C" priority="3" {road}/>'
-        f'<edge id="m_out" from="C" to="M1" priority="3" {road}/>'
-        f'<edge id="n_in" from="N0" to="C" priority="1" {road}/>'
-        f'<edge id="n_out" from="C" to="N1" priority="1" {road}/></edges>'
-    )
     # the turn crosses the straight path near the junction's centre and again near the straight's start
-    (tmp_path / "n.con.xml").write_text(
-        '<connections><connection from="n_in" to="n_out" fromLane="0" toLane="0"/>'
+    net = _two_road_junction(
+        tmp_path, 15, {"m": ((100, 5), (-12, 100)), "n": ((-80, 80), (80, -80))},
+        '<connection from="n_in" to="n_out" fromLane="0" toLane="0"/>'
         '<connection from="m_in" to="m_out" fromLane="0" toLane="0" shape="15,5 3,2 -4,-2 -9,4 -11.8,15"/>'
-        '<prohibition prohibitor="m_in->m_out" prohibited="n_in->n_out"/></connections>'
-    )
-    net = tmp_path / "n.net.xml"
-    run = run_tool("netconvert", ["-n", str(tmp_path / "n.nod.xml"), "-e", str(tmp_path / "n.edg.xml"),
-                                  "-x", str(tmp_path / "n.con.xml"), "--no-turnarounds", "true", "-o", str(net)])  # fmt: skip
-    assert run.returncode == 0, run.log
+        '<prohibition prohibitor="m_in->m_out" prohibited="n_in->n_out"/>',
+    )  # fmt: skip
     (tmp_path / "r.rou.xml").write_text(
         '<routes><vType id="car" sigma="0" length="5" width="1.8" minGap="2.5"/>'
         '<vehicle id="M" type="car" depart="0" departPos="60" departSpeed="0"><route edges="n_in n_out"/>'
