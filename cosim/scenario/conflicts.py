@@ -880,20 +880,19 @@ def conflict_extents(net_file: Path, min_gap_m: float, car_length_m: float = CAR
             if not points:
                 continue
             crossings = sorted(paths[i].project(p) for p in points)
-            sizes = [_conflict_size(paths[i], paths[k], s, b.chain, shapes, lanes) for s in crossings]
-            # SUMO places the start in geometry and adds the size in lane units; it takes the last crossing
-            sumo_start = scales[i].lane_pos(max(0.0, crossings[-1] - sizes[-1] / 2.0))
-            sumo_end = sumo_start + sizes[-1]
+            size = _conflict_size(paths[i], paths[k], crossings[-1], b.chain, shapes, lanes)
+            # SUMO takes the last crossing; it places the start in geometry and adds the size in lane units
+            sumo_start = scales[i].lane_pos(max(0.0, crossings[-1] - size / 2.0))
+            sumo_end = sumo_start + size
             # paths that cross more than once: the extent starts before the first crossing (SUMO keeps one
             # crossing per pair of lanes, each lane's last: MSLink::setRequestInformation). Only for a movement
             # whose cars wait at the stop line: one that waits inside the junction (an internal junction) would
             # stand past such a start, and SUMO lets a car past the start ignore foes not yet in its way
             # (Monaco 25345339: a left turn's start moved from 11.3 m to 0 m, and a car collided there)
             first_start = sumo_start
-            if len(a.chain) == 1:
-                first_start = min(
-                    scales[i].lane_pos(max(0.0, s - z / 2.0)) for s, z in zip(crossings, sizes, strict=True)
-                )
+            for s in crossings[:-1] if len(a.chain) == 1 else ():
+                z = _conflict_size(paths[i], paths[k], s, b.chain, shapes, lanes)
+                first_start = min(first_start, scales[i].lane_pos(max(0.0, s - z / 2.0)))
             # the passing movement's cars sweep its path and the first metres of the road after it
             strip = shapely.LineString(list(paths[k].coords) + _cut(shapes[b.to_lane], LANE_END_M, False)[1:])
             strip = strip.buffer(car_width_m / 2.0, cap_style="flat")
