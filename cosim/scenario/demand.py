@@ -34,6 +34,7 @@ import numpy as np
 
 from cosim.errors import CosimError
 from cosim.scenario.behaviour import ScvBehaviour
+from cosim.scenario.network import is_turning_loop
 from cosim.scenario.osm import SPAWN_HIGHWAYS
 from cosim.scenario.routetable import RouteTable
 from cosim.sumo_bridge.bridge import EGO_VTYPE
@@ -135,7 +136,12 @@ def is_spawn_edge(edge) -> bool:
 def trip_ends(comp: list, min_length_m: float = 5.0) -> tuple[list[str], np.ndarray]:
     """Where SCV trips start and end: the spawn edges of ``comp`` longer than ``min_length_m`` and their
     draw probabilities (lane length, so a long street gets more trips than a stub of a cluster)."""
-    ends = [e for e in comp if is_spawn_edge(e) and e.getLength() > min_length_m]
+    # not on a turning loop beyond the map's edge (cosim.scenario.network): trips run between the town's streets
+    ends = [
+        e
+        for e in comp
+        if is_spawn_edge(e) and e.getLength() > min_length_m and not is_turning_loop(e.getID())
+    ]
     if not ends:
         raise CosimError(
             "the network has no primary/secondary/tertiary/unclassified/motorway/residential road to start traffic on"

@@ -664,6 +664,141 @@ def light_joins(net) -> list[list[str]]:
     return list(groups.values())
 
 
+# A map whose drivable part has no loop (a tree of roads cut from a town: a motorway junction with its feeder
+# roads, a village street) strands every route at a cut end within minutes. There, each two-way road that the
+# extract cut gets a turning loop beyond its end, where the real road would go on: a stem and a one-way circle,
+# driven as round a cul-de-sac's island (anticlockwise where traffic keeps right). At 20 km/h the circle holds
+# a car below 2 m/s^2 of lateral acceleration (5.56^2 / 16 = 1.9), and each half of it, less the junctions at
+# its ends, is longer than HAIRPIN_WITHIN_M: a route through it turns round, but nowhere in a hairpin.
+TURNING_LOOP_RADIUS_M = 16.0
+TURNING_LOOP_STEM_M = 10.0
+TURNING_LOOP_SPEED_MPS = 5.56  # 20 km/h
+TURNING_LOOP_CLEARANCE_M = 5.0  # no other road within this of the circle
+TURNING_LOOP_ID = "_turning_loop_"  # in the ids of a loop's nodes and edges, after the dead end's id
+
+
+def is_turning_loop(element_id: str) -> bool:
+    """Whether a node or edge id is a turning loop's (no road of the town's: no signs, no trip ends)."""
+    return TURNING_LOOP_ID in element_id
+
+
+@dataclass
+class TurningLoops:
+    """The dead ends that get a loop and the netconvert patch files' contents."""
+
+    dead_ends: list[str] = field(default_factory=list)
+    nodes: list[str] = field(default_factory=list)
+    edges: list[str] = field(default_factory=list)
+    connections: list[str] = field(default_factory=list)
+
+
+def turning_loops(net, lefthand: bool) -> TurningLoops:
+    """The turning loops a network needs: none when its drivable part has a loop a route can go on through
+    for ever (``RouteChainer.endless``). A cut end qualifies when its loop lies outside the convex hull of the
+    network's junctions (the extract cut the road there; a cul-de-sac inside the town would put the loop
+    through its blocks) and clear of every other road."""
+    import shapely
+
+    from cosim.scenario.demand import RouteChainer, drivable_component
+
+    loops = TurningLoops()
+    comp = drivable_component(net)
+    if RouteChainer(comp).endless:
+        return loops
+    comp_ids = {e.getID() for e in comp}
+    hull = shapely.MultiPoint([n.getCoord()[:2] for n in net.getNodes()]).convex_hull
+    roads = {e.getID(): shapely.LineString([p[:2] for p in e.getShape()]) for e in net.getEdges()}
+    r = TURNING_LOOP_RADIUS_M
+    for node in sorted(net.getNodes(), key=lambda n: n.getID()):
+        inc, out = node.getIncoming(), node.getOutgoing()
+        if not (len(inc) == 1 and len(out) == 1 and inc[0].getID() in comp_ids
+                and out[0].getToNode() is inc[0].getFromNode()):  # fmt: skip
+            continue  # not the end of a two-way road
+        road, back = inc[0], out[0]
+        (x0, y0), (x1, y1) = (p[:2] for p in road.getShape()[-2:])
+        length = math.hypot(x1 - x0, y1 - y0)
+        if length < 1e-6:
+            continue
+        dx, dy = (x1 - x0) / length, (y1 - y0) / length  # on, beyond the end
+        fx, fy = node.getCoord()[:2]
+        ax, ay = fx + dx * TURNING_LOOP_STEM_M, fy + dy * TURNING_LOOP_STEM_M  # the stem's far end
+        cx, cy = ax + dx * r, ay + dy * r  # the circle's centre
+        if hull.contains(shapely.Point(cx, cy)):
+            continue
+        disc = shapely.Point(cx, cy).buffer(r + TURNING_LOOP_CLEARANCE_M)
+        if any(
+            disc.intersects(line) for eid, line in roads.items() if eid not in (road.getID(), back.getID())
+        ):
+            continue
+        side = (-dy, dx) if lefthand else (dy, -dx)  # into the circle by a turn to the kerb side
+        first, second = (_arc((cx, cy), (dx, dy), side, t0) for t0 in (0.0, math.pi))
+        n = node.getID()
+        a, b = n + TURNING_LOOP_ID + "a", n + TURNING_LOOP_ID + "b"
+        # the dead end becomes a junction with the stem (netconvert connects nothing at a dead_end node)
+        for nid, x, y in ((n, fx, fy), (a, ax, ay), (b, cx + dx * r, cy + dy * r)):
+            loops.nodes.append(f'    <node id={quoteattr(nid)} x="{x:.2f}" y="{y:.2f}" type="priority"/>\n')
+        like_the_road = f'priority="{road.getPriority()}" type={quoteattr(road.getType())} numLanes="1"'
+        stem_mps = min(road.getSpeed(), 8.33)
+        for suffix, frm, to, extra in (
+            ("out", n, a, f'speed="{stem_mps:.2f}"'),
+            ("in", a, n, f'speed="{stem_mps:.2f}"'),
+            ("1", a, b, f'speed="{TURNING_LOOP_SPEED_MPS}" spreadType="center" shape="{first}"'),
+            ("2", b, a, f'speed="{TURNING_LOOP_SPEED_MPS}" spreadType="center" shape="{second}"'),
+        ):
+            loops.edges.append(f'    <edge id={quoteattr(n + TURNING_LOOP_ID + suffix)} from={quoteattr(frm)} '
+                               f'to={quoteattr(to)} {like_the_road} {extra} name="turning loop"/>\n')  # fmt: skip
+        # into the loop instead of turning round; lane by lane: netconvert does not connect a read network's
+        # lanes anew from an edge-to-edge connection
+        loops.connections.append(
+            f"    <delete from={quoteattr(road.getID())} to={quoteattr(back.getID())}/>\n"
+        )
+        loops.connections += [
+            f'    <connection from={quoteattr(road.getID())} to={quoteattr(n + TURNING_LOOP_ID + "out")} '
+            f'fromLane="{lane.getIndex()}" toLane="0"/>\n'
+            for lane in road.getLanes() if lane.allows("passenger")
+        ]  # fmt: skip
+        loops.connections.append(f'    <connection from={quoteattr(n + TURNING_LOOP_ID + "in")} '
+                                 f'to={quoteattr(back.getID())} fromLane="0" toLane="0"/>\n')  # fmt: skip
+        loops.dead_ends.append(n)
+    return loops
+
+
+def _arc(centre, outwards, side, t0: float) -> str:
+    """A turning loop's half circle from angle t0 to t0 + pi (0: the point nearest the road's end, pi / 2: to
+    ``side`` of the centre) as a netconvert shape."""
+    (cx, cy), (dx, dy), (sx, sy), r = centre, outwards, side, TURNING_LOOP_RADIUS_M
+    ts = (t0 + math.pi * k / 12 for k in range(13))
+    return " ".join(
+        f"{cx - r * (math.cos(t) * dx - math.sin(t) * sx):.2f},{cy - r * (math.cos(t) * dy - math.sin(t) * sy):.2f}"
+        for t in ts
+    )
+
+
+def add_turning_loops(final: Path, workdir: Path, common: list[str], osm_path: Path) -> tuple[list[str], ToolRun | None]:  # fmt: skip
+    """Add the ``turning_loops`` the network file ``final`` needs, in place: (their dead ends, the netconvert
+    run or None)."""
+    net = read_network(final)
+    loops = turning_loops(net, net.lefthand)
+    if not loops.dead_ends:
+        return [], None
+    files = {}
+    for kind, root, lines in (("nod", "nodes", loops.nodes), ("edg", "edges", loops.edges),
+                              ("con", "connections", loops.connections)):  # fmt: skip
+        files[kind] = workdir / f"loops.{kind}.xml"
+        files[kind].write_text(f"<{root}>\n" + "".join(lines) + f"</{root}>\n")
+    out = workdir / "loops.net.xml"
+    run = run_tool("netconvert", ["--sumo-net-file", str(final), "--node-files", str(files["nod"]),
+                                  "--edge-files", str(files["edg"]), "--connection-files", str(files["con"]),
+                                  *common, "--offset.disable-normalization", "true", "--output-file", str(out)])  # fmt: skip
+    with (workdir / "netconvert.log").open("a") as fh:
+        fh.write("\n--- turning loops (a map without a loop) ---\n" + run.log)
+    _check("netconvert (turning loops)", run, osm_path)
+    os.replace(out, final)
+    for f in files.values():
+        f.unlink()
+    return loops.dead_ends, run
+
+
 def _check(tool: str, run: ToolRun, osm_path: Path) -> None:
     if run.returncode != 0:
         first = run.errors[0] if run.errors else run.log.strip().splitlines()[-1:] or ["unknown error"]
@@ -722,9 +857,12 @@ def build_network(
     pass1.unlink()
     for f in (*files.values(), ends):
         f.unlink(missing_ok=True)
+    runs = [("pass1", run1), *([("pass1b", run_join)] if run_join else []), ("pass2", run2)]
+    loops = add_turning_loops(final, workdir, common, osm.path)
+    if loops[1]:
+        runs.append(("turning loops", loops[1]))
     # netconvert rebuilds the junctions it patched (a prohibition adds an internal stop, a deleted connection
     # reshapes its neighbours): check the result and fix again until nothing is left
-    runs = [("pass1", run1), *([("pass1b", run_join)] if run_join else []), ("pass2", run2)]
     fixes["fix_rounds"] = 1
     for i in range(FIX_ROUNDS - 1):
         con = workdir / "fixes.con.xml"
@@ -748,13 +886,19 @@ def build_network(
     plans = split_signal_plans(read_network(final, programs=True))
     write_signal_plans(final, plans)
     fixes["signal_plans_split"] = len(plans)
+    fixes["turning_loops"] = len(loops[0])
     # last: netconvert drops <conflict> elements when it reads a network
     extents = conflict_extents(final, behaviour.min_gap_m)
     write_conflict_extents(final, extents)
     fixes["conflicts_extended"] = len(extents)
     with fix_log.open("a") as fh:
         fh.write(
-            "".join(f"{t}: a permissive left on a shared lane, its phase split by approach\n" for t in plans)
+            "".join(
+                f"{n}: a turning loop beyond the road's cut end (the map has no loop)\n" for n in loops[0]
+            )
+            + "".join(
+                f"{t}: a permissive left on a shared lane, its phase split by approach\n" for t in plans
+            )
             + "".join(
                 f"{j} {a.from_edge}->{a.to_edge} in the way of {b.from_edge}->{b.to_edge} from {s0} to {s1} m "
                 f"(SUMO: {z0} to {z1} m)\n"

@@ -21,6 +21,8 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 from xml.sax.saxutils import quoteattr
 
+from cosim.scenario.network import is_turning_loop
+
 SIGN_SIDE_OFFSET_M = 1.0  # from the kerb-side edge of the road (the right one in right-hand traffic)
 SPEED_CHANGE_MIN_MPS = 0.5
 SIGN_KINDS = (
@@ -103,6 +105,8 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
         signs.append(Sign("traffic_light", x, y, h, eid, source="osm"))
     # implicit speed limits and one-way / no-entry signs, junction by junction
     for node in net.getNodes():
+        if is_turning_loop(node.getID()):
+            continue
         incoming = [e for e in node.getIncoming() if e.getFunction() != "internal"]
         outgoing = [e for e in node.getOutgoing() if e.getFunction() != "internal"]
         two_way_here = any(not _is_oneway(e) for e in incoming + outgoing)
@@ -110,6 +114,8 @@ def derive_signs(net, placements, junction_kind, tls_approaches, osm_signs) -> l
             continued = [
                 c.getFrom() for e in incoming for c in e.getConnections(out) if c.getDirection() == "s"
             ]
+            if is_turning_loop(out.getID()) or any(is_turning_loop(e.getID()) for e in continued):
+                continue  # the road on beyond the map's edge and back: no sign of the town's
             if any(abs(e.getSpeed() - out.getSpeed()) > SPEED_CHANGE_MIN_MPS for e in continued):
                 x, y, h = roadside(out, at_end=False)
                 signs.append(

@@ -3,6 +3,7 @@ out, and the run's own health (issue: the drive holds on any real map)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import libsumo  # the runs' SUMO: libsumo runs in this process
@@ -71,6 +72,40 @@ def test_the_route_is_extended_past_its_first_destination(tmp_path):
     assert h["ego_distance_m"] > planned_m + 300.0, (h["ego_distance_m"], planned_m)
     assert lead_route and lead_route[-1] == sim.ego_route[-1]  # the lead keeps to the same, extended route
     assert h["longest_standstill_s"] < 30.0 and h["stalls"] == 0
+    assert h["lead_leader_share"] > 0.9, h
+
+
+def test_a_map_without_a_loop_gets_turning_loops_and_the_ego_drives_on(tmp_path):
+    """A T of two-way streets cut at the extract's edge has no loop: every route ran out at a cut end within
+    a few hundred metres (graphhopper's bautzen.osm, a motorway junction with its feeder roads: 745 m, then
+    196 s at the route's end). Each cut end gets a turning loop beyond it, driven like a cul-de-sac's: the
+    ego drives on through the junction and the loops for the whole run, on the road, the lead ahead."""
+    import sumolib
+
+    from cosim.scenario.demand import RouteChainer, drivable_component
+    from cosim.scenario.network import TURNING_LOOP_ID, is_turning_loop
+
+    s = OsmSketch()
+    for name, (x, y) in {"c": (0, 0), "w": (-250, 0), "e": (250, 0), "n": (0, 250)}.items():
+        s.node(name, x, y)
+    s.way(["w", "c", "e"], highway="secondary", maxspeed="50")
+    s.way(["c", "n"], highway="residential", maxspeed="30")
+    osm = s.write(tmp_path / "tee.osm")
+    scn = build_scenario(osm, tmp_path / "scn", density="low", seed=1, log=lambda *a: None)
+    assert scn.report["network"]["junction_fixes"]["turning_loops"] == 3
+    net = sumolib.net.readNet(str(scn.net_file))
+    comp = drivable_component(net)
+    assert {e.getID() for e in comp} >= {e.getID() for e in net.getEdges() if is_turning_loop(e.getID())}
+    assert RouteChainer(comp).endless  # legs may end somewhere with a way on
+    for end in ("w", "e", "n"):  # the loops lie beyond the cut ends, where the roads would go on
+        a = net.getNode(f"{s.ids[end]}{TURNING_LOOP_ID}a").getCoord()
+        assert math.hypot(*a[:2]) > math.hypot(*net.getNode(s.ids[end]).getCoord()[:2]) + 5.0
+    cfg = load_run_config(None, **{"scenario.map": str(osm), "scenario.demand.density": "low",
+                                   "vanet": None, "seed": 1, "duration_s": 300})  # fmt: skip
+    with Simulation(cfg, out_dir=tmp_path / "run", scenario=scn) as sim:
+        h = sim.run()["health"]
+    assert h["status"] == "ok", h["problems"]
+    assert h["ego_distance_m"] > 1000.0 and h["longest_standstill_s"] < 30.0 and h["off_road_s"] == 0.0, h
     assert h["lead_leader_share"] > 0.9, h
 
 
