@@ -120,6 +120,9 @@ class Edge:
     def getFromNode(self):
         return self.from_node
 
+    def allows(self, vclass):
+        return True
+
     def getLength(self):
         return self.length_m
 
@@ -177,6 +180,9 @@ class Net:
 
     def getEdge(self, eid):
         return self.edges[eid]
+
+    def getEdges(self):
+        return list(self.edges.values())
 
     def getRoundabouts(self):
         return []

@@ -241,7 +241,7 @@ def _short_loop(edge, to_edge) -> bool:
     """Whether turning from ``edge`` into ``to_edge`` leads back to the junction ``edge`` left within
     U_TURN_LOOP_M of road, and every way on through that loop either turns round or is a movement the
     junction has directly. Krems 83637441 before its two lights 0.2 m apart were joined (network.py,
-    light_joins): SCVs that A* sent back up Hafenstrasse turned round through both links, and one
+    junction_joins): SCVs that A* sent back up Hafenstrasse turned round through both links, and one
     stood at the red crosswise over the next lane, where a car going straight on hit it. Junctions that
     stay apart form the same loop: Krems 25096356#1 -> 59606607 -> 25096356#1, 11.7 m."""
     start = edge.getFromNode()

@@ -190,11 +190,11 @@ def test_one_crossing_is_one_junction_and_no_car_turns_round_inside_it(scenarios
     into one junction: one signal, SUMO's own foe relations between all its movements, no U-turn (where
     the street goes on), and every movement of the crossing still there."""
     from cosim.scenario.conflicts import _short_loop
-    from cosim.scenario.network import light_joins
+    from cosim.scenario.network import junction_joins
 
     scn = scenarios["krems"]
     net = sumolib.net.readNet(str(scn.net_file))
-    assert light_joins(net) == []
+    assert junction_joins(net) == []
     crossing = net.getEdge("104372792#0").getToNode()
     assert "83637441" in crossing.getID() and "1204188756" in crossing.getID(), crossing.getID()
     assert crossing.getType() == "traffic_light"
