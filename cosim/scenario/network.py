@@ -684,6 +684,7 @@ def junction_joins(net) -> list[list[str]]:
 TURNING_LOOP_RADIUS_M = 16.0
 TURNING_LOOP_STEM_M = 10.0
 TURNING_LOOP_SPEED_MPS = 5.56  # 20 km/h
+TURNING_LOOP_STEM_SPEED_MPS = 8.33  # 30 km/h at most on the stem
 TURNING_LOOP_CLEARANCE_M = 5.0  # no other road within this of the circle
 TURNING_LOOP_ID = "_turning_loop_"  # in the ids of a loop's nodes and edges, after the dead end's id
 
@@ -749,7 +750,7 @@ def turning_loops(net, lefthand: bool) -> TurningLoops:
         for nid, x, y in ((n, fx, fy), (a, ax, ay), (b, cx + dx * r, cy + dy * r)):
             loops.nodes.append(f'    <node id={quoteattr(nid)} x="{x:.2f}" y="{y:.2f}" type="priority"/>\n')
         like_the_road = f'priority="{road.getPriority()}" type={quoteattr(road.getType())} numLanes="1"'
-        stem_mps = min(road.getSpeed(), 8.33)
+        stem_mps = min(road.getSpeed(), TURNING_LOOP_STEM_SPEED_MPS)
         for suffix, frm, to, extra in (
             ("out", n, a, f'speed="{stem_mps:.2f}"'),
             ("in", a, n, f'speed="{stem_mps:.2f}"'),
@@ -869,9 +870,9 @@ def build_network(
     for f in (*files.values(), ends):
         f.unlink(missing_ok=True)
     runs = [("pass1", run1), *([("pass1b", run_join)] if run_join else []), ("pass2", run2)]
-    loops = add_turning_loops(final, workdir, common, osm.path)
-    if loops[1]:
-        runs.append(("turning loops", loops[1]))
+    loop_ends, loop_run = add_turning_loops(final, workdir, common, osm.path)
+    if loop_run is not None:
+        runs.append(("turning loops", loop_run))
     # netconvert rebuilds the junctions it patched (a prohibition adds an internal stop, a deleted connection
     # reshapes its neighbours): check the result and fix again until nothing is left
     fixes["fix_rounds"] = 1
@@ -897,7 +898,7 @@ def build_network(
     plans = split_signal_plans(read_network(final, programs=True))
     write_signal_plans(final, plans)
     fixes["signal_plans_split"] = len(plans)
-    fixes["turning_loops"] = len(loops[0])
+    fixes["turning_loops"] = len(loop_ends)
     # last: netconvert drops <conflict> elements when it reads a network
     extents = conflict_extents(final, behaviour.min_gap_m)
     write_conflict_extents(final, extents)
@@ -905,7 +906,7 @@ def build_network(
     with fix_log.open("a") as fh:
         fh.write(
             "".join(
-                f"{n}: a turning loop beyond the road's cut end (the map has no loop)\n" for n in loops[0]
+                f"{n}: a turning loop beyond the road's cut end (the map has no loop)\n" for n in loop_ends
             )
             + "".join(
                 f"{t}: a permissive left on a shared lane, its phase split by approach\n" for t in plans
