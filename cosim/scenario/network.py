@@ -786,10 +786,9 @@ def _arc(centre, outwards, side, t0: float) -> str:
     )
 
 
-def add_turning_loops(final: Path, workdir: Path, common: list[str], osm_path: Path) -> tuple[list[str], ToolRun | None]:  # fmt: skip
-    """Add the ``turning_loops`` the network file ``final`` needs, in place: (their dead ends, the netconvert
-    run or None)."""
-    net = read_network(final)
+def add_turning_loops(net, final: Path, workdir: Path, common: list[str], osm_path: Path) -> tuple[list[str], ToolRun | None]:  # fmt: skip
+    """Add the ``turning_loops`` that ``net``, read from the network file ``final``, needs, into that file: (their
+    dead ends, the netconvert run or None)."""
     loops = turning_loops(net, net.lefthand)
     if not loops.dead_ends:
         return [], None
@@ -870,7 +869,8 @@ def build_network(
     for f in (*files.values(), ends):
         f.unlink(missing_ok=True)
     runs = [("pass1", run1), *([("pass1b", run_join)] if run_join else []), ("pass2", run2)]
-    loop_ends, loop_run = add_turning_loops(final, workdir, common, osm.path)
+    final_net = read_network(final)
+    loop_ends, loop_run = add_turning_loops(final_net, final, workdir, common, osm.path)
     if loop_run is not None:
         runs.append(("turning loops", loop_run))
     # netconvert rebuilds the junctions it patched (a prohibition adds an internal stop, a deleted connection
@@ -878,7 +878,10 @@ def build_network(
     fixes["fix_rounds"] = 1
     for i in range(FIX_ROUNDS - 1):
         con = workdir / "fixes.con.xml"
-        more = junction_fixes(read_network(final), final, con, ends, fix_log)
+        # the first round reads the network once with the loops' check (unless the loops changed the file)
+        more = junction_fixes(
+            final_net if i == 0 and loop_run is None else read_network(final), final, con, ends, fix_log
+        )
         if not any(more.values()):
             con.unlink()
             break
