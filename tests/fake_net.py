@@ -93,8 +93,12 @@ class Edge:
     ``out`` maps a next edge to the connections into it."""
 
     def __init__(self, eid: str, lanes: list[Lane], node: Node, *, from_node: Node | None = None,
-                 length_m: float = 100.0):  # fmt: skip
+                 length_m: float = 100.0, speed_mps: float = 13.89):  # fmt: skip
         self.eid, self.lanes, self.node, self.out, self.length_m = eid, lanes, node, {}, length_m
+        self.speed_mps, self.into = (
+            speed_mps,
+            {},
+        )  # into: the edges feeding this one, as sumolib's getIncoming
         self.params: dict[str, str] = {}  # OSM's tags netconvert keeps (e.g. turn:lanes)
         self.from_node = from_node if from_node is not None else Node(f"from_{eid}", type="priority")
         node.incoming.append(self)
@@ -108,11 +112,28 @@ class Edge:
         lanes = [Lane(i, [(x0, -3.2 * i), (x1, -3.2 * i)]) for i in range(n_lanes)]
         return cls(eid, lanes, Node(f"n{eid}", (x1, 0.0)), length_m=abs(x1 - x0))
 
+    def connect(self, to_edge: Edge, lane_pairs: list[tuple[int, int]]) -> None:
+        """Connections from this edge's lanes into ``to_edge``'s, as (from lane, to lane) index pairs."""
+        conns = [Conn(self.lanes[a], to_edge.lanes[b]) for a, b in lane_pairs]
+        self.out[to_edge] = conns
+        to_edge.into[self] = conns
+        for c in conns:
+            c.from_lane.conns.append(c)
+
     def getID(self):
         return self.eid
 
+    def getFunction(self):
+        return ""
+
+    def getSpeed(self):
+        return self.speed_mps
+
     def getOutgoing(self):
         return self.out
+
+    def getIncoming(self):
+        return self.into
 
     def getToNode(self):
         return self.node

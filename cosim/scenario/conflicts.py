@@ -42,6 +42,9 @@ import numpy as np
 VEHICLE_WIDTH_M = 1.8  # the widest SCV body (SUMO's passenger default) [m]
 CLEARANCE_MARGIN_M = 0.3  # paths closer than width + margin conflict [m]
 LANE_END_M = 3.0  # how much of the incoming / outgoing lane a car at the junction still covers [m]
+# a lane change takes 4.6 s on average, 1-13 s (Toledo & Zohar 2007, "Modeling duration of lane changes",
+# Transportation Research Record 1999): a road shorter than this at its speed limit leaves no room for one
+LANE_CHANGE_S = 4.6
 
 # straight before the turn to the kerb side before the one across the oncoming lanes before a U-turn: in
 # right-hand traffic s, R, r, L, l, t (left-hand traffic mirrors the turns: MIRRORED_DIR)
@@ -375,6 +378,19 @@ def internal_stop_fixes(net_file: Path, clearance_m: float = VEHICLE_WIDTH_M / 2
     return lines, moved
 
 
+def _no_room_to_change_lanes(edge) -> bool:
+    return edge.getLength() < LANE_CHANGE_S * edge.getSpeed()
+
+
+def _onward_roads(edge) -> dict[int, set[str]]:
+    """Lane index -> the roads a car leaves ``edge`` for from that lane."""
+    onward: dict[int, set[str]] = {}
+    for next_edge, conns in edge.getOutgoing().items():
+        for c in conns:
+            onward.setdefault(c.getFromLane().getIndex(), set()).add(next_edge.getID())
+    return onward
+
+
 def fan_out_deletions(net) -> list[str]:
     """``<delete>`` lines for one lane feeding two lanes of the same edge (a lane that widens into two).
 
@@ -383,6 +399,12 @@ def fan_out_deletions(net) -> list[str]:
     Helsinki, junction 2264808902: collisions every 90 s). One lane feeds one lane; a car that wants the
     new lane changes into it after the junction. Kept: the target lane fed by the fewest other lanes, then the
     rightmost.
+
+    Except where the road after the junction has no room for a lane change (shorter than LANE_CHANGE_S at
+    its speed limit) and a dropped lane is the only way on to a road beyond: graphhopper's bautzen.osm, a
+    10-m edge whose left lane alone leads straight on; the ego changed lanes within those 10 m and the car
+    behind hit it. There the fan-out is the choice of lane and stays (``stranded_lane_connections`` makes
+    one where netconvert did not).
     """
     lines = []
     for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
@@ -392,6 +414,7 @@ def fan_out_deletions(net) -> list[str]:
             feeders: dict[int, set[int]] = {}
             for c in conns:
                 feeders.setdefault(c.getToLane().getIndex(), set()).add(c.getFromLane().getIndex())
+            onward = _onward_roads(to_edge) if _no_room_to_change_lanes(to_edge) else {}
             by_from: dict[int, list] = {}
             for c in conns:
                 by_from.setdefault(c.getFromLane().getIndex(), []).append(c)
@@ -401,13 +424,56 @@ def fan_out_deletions(net) -> list[str]:
                 keep = min(
                     group, key=lambda c: (len(feeders[c.getToLane().getIndex()]), c.getToLane().getIndex())
                 )
+                reached = set(onward.get(keep.getToLane().getIndex(), ()))
                 for c in group:
                     if c is keep:
+                        continue
+                    if onward.get(c.getToLane().getIndex(), set()) - reached:
+                        reached |= onward[c.getToLane().getIndex()]
                         continue
                     lines.append(
                         f"    <delete from={quoteattr(edge.getID())} to={quoteattr(to_edge.getID())} "
                         f'fromLane="{from_lane}" toLane="{c.getToLane().getIndex()}"/>'
                     )
+    return lines
+
+
+def stranded_lane_connections(net) -> list[str]:
+    """``<connection>`` lines into lanes no incoming lane reaches, on roads with no room to change lanes,
+    where the lane is the only way on to a road beyond (a turn pocket that begins at a junction).
+
+    netconvert leaves such a lane unfed when a road gains a lane at a node (Munich 276604365#0: 11 m, its
+    third lane alone turns left; 189367280: 0.2 m). A car whose route needs it must change lanes within those
+    metres. The lane is fed from the incoming lane that feeds its nearest fed neighbour, on its side (the
+    leftmost such feeder for a lane to the left, the rightmost for one to the right): one lane fans out into
+    two, the lane choice ``fan_out_deletions`` keeps on such roads.
+    """
+    lines = []
+    for edge in sorted(net.getEdges(), key=lambda e: e.getID()):
+        if edge.getFunction() == "internal" or not _no_room_to_change_lanes(edge):
+            continue
+        feeders: dict[int, list[tuple[str, int]]] = {}
+        for from_edge in edge.getIncoming():
+            for c in from_edge.getOutgoing().get(edge, []):
+                feeders.setdefault(c.getToLane().getIndex(), []).append(
+                    (from_edge.getID(), c.getFromLane().getIndex())
+                )
+        if not feeders:
+            continue
+        onward = _onward_roads(edge)
+        for lane in edge.getLanes():
+            i = lane.getIndex()
+            if i in feeders or not lane.allows("passenger"):
+                continue
+            others = set().union(*(roads for j, roads in onward.items() if j != i))
+            if not onward.get(i, set()) - others:
+                continue
+            nearest = min(feeders, key=lambda j: (abs(j - i), j))
+            from_id, from_lane = (max if i > nearest else min)(feeders[nearest], key=lambda f: (f[1], f[0]))
+            lines.append(
+                f"    <connection from={quoteattr(from_id)} to={quoteattr(edge.getID())} "
+                f'fromLane="{from_lane}" toLane="{i}"/>'
+            )
     return lines
 
 

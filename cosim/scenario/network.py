@@ -35,6 +35,7 @@ from cosim.scenario.conflicts import (
     overlapping_end_deletions,
     separated_shapes,
     sibling_change_bars,
+    stranded_lane_connections,
     turnaround_deletions,
     write_conflict_extents,
 )
@@ -591,6 +592,7 @@ def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Pat
     deletions = turnaround_deletions(net)
     deleted = {tuple(re.findall(r'(?:from|to)="([^"]*)"', line)[:2]) for line in deletions}
     fan_outs = fan_out_deletions(net)
+    feeds = stranded_lane_connections(net)
     merges, crossed = crossing_merge_deletions(net_file)
     overlaps, overlapping = overlapping_end_deletions(net_file)
     # a loop is judged on the junction the other fixes have reshaped: they push most loops off the movement
@@ -606,13 +608,13 @@ def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Pat
     if ends:
         edg_file.write_text("<edges>\n" + "\n".join(ends) + "\n</edges>\n")
     body = con_file.read_text().replace("</connections>\n", "") if con_file.exists() else "<connections>\n"
-    body = _merge_connection_lines(body + "\n".join(stops + shapes + bars))
+    body = _merge_connection_lines(body + "\n".join(feeds + stops + shapes + bars))
     con_file.write_text(body + "\n" + "\n".join(deletions + fan_outs + prohibitions) + "\n</connections>\n")
     with log.open("a") as fh:
         fh.write(
             "".join(f"{j} {p[0]}->{p[1]} before {q[0]}->{q[1]} ({d} m)\n" for j, p, q, d in pairs)
             + "".join(f"{lane}: internal stop moved from {a} m to {b} m\n" for lane, a, b in moved)
-            + "".join(line.strip() + "\n" for line in deletions + fan_outs)
+            + "".join(line.strip() + "\n" for line in deletions + fan_outs + feeds)
             + "".join(f"{j} {a} / {b}: {d0} m apart -> {d1} m\n" for j, a, b, d0, d1 in separated)
             + "".join(
                 f"{j} {a}->{b}: deleted, its lane end {d} m from another movement's\n"
@@ -629,7 +631,8 @@ def junction_fixes(net, net_file: Path, con_file: Path, edg_file: Path, log: Pat
         )
     return {"turnarounds_removed": len(deletions) - len(merges) - len(overlaps) - len(loops),
             "looping_turns_removed": len(loops),
-            "lane_fan_outs_removed": len(fan_outs), "crossing_merge_lanes_removed": len(merges),
+            "lane_fan_outs_removed": len(fan_outs), "stranded_lanes_fed": len(feeds),
+            "crossing_merge_lanes_removed": len(merges),
             "overlapping_lanes_removed": len(overlaps),
             "prohibitions_added": len(prohibitions), "internal_stops_moved": len(moved),
             "internal_lanes_reshaped": len(shapes), "sibling_lane_changes_barred": len(bars),

@@ -32,6 +32,7 @@ from cosim.scenario.conflicts import (
     overlapping_end_deletions,
     separated_shapes,
     sibling_change_bars,
+    stranded_lane_connections,
     turnaround_deletions,
 )
 
@@ -61,7 +62,8 @@ def test_built_network_has_no_unsafe_junction_geometry(scenarios, name):
     assert fixes["prohibitions_added"] > 10 and fixes["internal_stops_moved"] >= 5, fixes
     net = sumolib.net.readNet(str(scn.net_file), withInternal=False)
     assert turnaround_deletions(net) == []  # no U-turn where the street goes on
-    assert fan_out_deletions(net) == []  # one lane feeds one lane
+    assert fan_out_deletions(net) == []  # one lane feeds one lane, but where a short road's lanes part ways
+    assert stranded_lane_connections(net) == []  # such a road's lanes are all fed
     _, pairs = geometric_prohibitions(scn.net_file)
     assert pairs == [], pairs[:5]  # every pair of movements closer than a car's width is a foe pair
     _, moved = internal_stop_fixes(scn.net_file)
