@@ -138,7 +138,7 @@ class LeadBridge(FoesBridge, Protocol):
 
     def lane_speed_limit(self, vid: str) -> float: ...
 
-    def next_tls(self, vid: str) -> tuple[str, int, float, str] | None: ...
+    def next_tls(self, vid: str, within_m: float = math.inf) -> tuple[str, int, float, str] | None: ...
 
     def tls_green_left_s(self, tls_id: str, link_index: int) -> tuple[float, float]: ...
 
@@ -354,8 +354,8 @@ class LeadVehicle:
 
     def _light_cap(self, w: World, v_ego: float) -> float | None:
         """Speed cap that stops the lead at a green light the ego would not get through, else None."""
-        tls = self.bridge.next_tls(LEAD_ID)
-        if not tls or tls[2] > LIGHT_DECIDE_M:
+        tls = self.bridge.next_tls(LEAD_ID, within_m=LIGHT_DECIDE_M)
+        if not tls:
             return None
         tls_id, link, dist, state = tls
         if not self.gap_m > 0:  # the ego is beside or ahead of the lead: nothing to wait for

@@ -34,3 +34,49 @@ def test_a_collision_is_reported_once_while_sumo_repeats_it_and_names_pairs_in_t
     forget_collisions(seen, later)
     assert seen == {}
     assert collision_onset(seen, a, later)  # the same pair again after a pause: a new collision
+
+
+class _Vehicle:
+    """A car driving 1 m a step towards a light 200 m ahead on its route; counts SUMO's route walks."""
+
+    def __init__(self):
+        self.odometer, self.light_at, self.walks = 0.0, 200.0, 0
+
+    def getDistance(self, vid):
+        return self.odometer
+
+    def getNextTLS(self, vid):
+        self.walks += 1
+        left = self.light_at - self.odometer
+        return [("tls1", 3, left, "G")] if left > 0 else []
+
+    def setRoute(self, vid, edges):
+        self.light_at = self.odometer + 120.0  # the new route passes another light sooner
+
+
+def test_next_tls_within_reach_answers_as_sumo_would_without_walking_the_route_every_step():
+    """The lead's getNextTLS walks its whole 15-km route; while its next light is out of reach the bridge
+    does not ask, and its answers are the ones asking every step would give, also after a new route."""
+    from types import SimpleNamespace
+
+    bridge = SumoBridge.__new__(SumoBridge)
+    bridge._sumo = SimpleNamespace(vehicle=_Vehicle())
+    bridge._tls_beyond, bridge._route_changes = {}, {}
+    veh = bridge._sumo.vehicle
+
+    def truth(within_m):
+        left = veh.light_at - veh.odometer
+        return ("tls1", 3, left, "G") if 0 < left <= within_m else None
+
+    answers = []
+    for step in range(300):
+        if step == 150:
+            assert bridge._set_route("lead", ["a", "b"]) is None
+        answers.append(bridge.next_tls("lead", within_m=70.0) == truth(70.0))
+        veh.odometer += 1.0
+    assert all(answers)
+    # asked once out of reach, every step within 80 m of the first light (only 150 - 120 = 30 steps of it
+    # before the new route), once after it and every step within 80 m of the new light
+    assert veh.walks <= 1 + 30 + 1 + 80 + 1, veh.walks  # against 300 asked every step
+    walks = veh.walks
+    assert bridge.next_tls("lead") is None and veh.walks == walks + 1  # no reach given: SUMO is asked

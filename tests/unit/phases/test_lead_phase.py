@@ -56,8 +56,8 @@ class FakeBridge:
     def lane_speed_limit(self, vid):
         return 13.0
 
-    def next_tls(self, vid):
-        return self.tls
+    def next_tls(self, vid, within_m=float("inf")):
+        return self.tls if self.tls and self.tls[2] <= within_m else None
 
     def tls_green_left_s(self, tls_id, link):
         g = self.green_left_s  # a fixed programme's end, or an actuated green's (earliest, latest)
