@@ -95,10 +95,8 @@ class Edge:
     def __init__(self, eid: str, lanes: list[Lane], node: Node, *, from_node: Node | None = None,
                  length_m: float = 100.0, speed_mps: float = 13.89):  # fmt: skip
         self.eid, self.lanes, self.node, self.out, self.length_m = eid, lanes, node, {}, length_m
-        self.speed_mps, self.into = (
-            speed_mps,
-            {},
-        )  # into: the edges feeding this one, as sumolib's getIncoming
+        self.speed_mps = speed_mps
+        self.into: dict = {}  # the edges feeding this one and their connections, as sumolib's getIncoming
         self.params: dict[str, str] = {}  # OSM's tags netconvert keeps (e.g. turn:lanes)
         self.from_node = from_node if from_node is not None else Node(f"from_{eid}", type="priority")
         node.incoming.append(self)
