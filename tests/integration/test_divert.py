@@ -25,7 +25,8 @@ def test_a_car_is_sent_off_the_way_and_never_back_onto_it(crossroads):
 
     libsumo.start(["sumo", "-n", str(crossroads), "--no-step-log", "true"])
     try:
-        bridge = SumoBridge.__new__(SumoBridge)  # the SUMO handle and the routes it gave: divert needs no more
+        # the SUMO handle and the routes it gave: divert needs no more
+        bridge = SumoBridge.__new__(SumoBridge)
         bridge._sumo, bridge._route_changes = libsumo, {}
         way = {"WC", "CE", "EF"}
         libsumo.route.add("r", ["WC", "CE", "EF"])
