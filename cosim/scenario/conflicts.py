@@ -453,8 +453,8 @@ def stranded_lane_connections(net) -> list[str]:
         if edge.getFunction() == "internal" or not _no_room_to_change_lanes(edge):
             continue
         feeders: dict[int, list[tuple[str, int]]] = {}
-        for from_edge in edge.getIncoming():
-            for c in from_edge.getOutgoing().get(edge, []):
+        for from_edge, conns in edge.getIncoming().items():
+            for c in conns:
                 feeders.setdefault(c.getToLane().getIndex(), []).append(
                     (from_edge.getID(), c.getFromLane().getIndex())
                 )
