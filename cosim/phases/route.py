@@ -12,7 +12,9 @@ and where SUMO's router finds a way round it that is expected to save ``REPLAN_G
 it: the ego's path, the ego's twin and the lead in SUMO all get the new edges (event ``route_replanned``).
 Without it the pair joined whatever queue SUMO's own traffic built on their way and stood in it for minutes
 (Krems, seed 1, 300 s: the ego drove 547 m; with four ways round, 1218 m).
-A queue that forms behind the lead, or one on the lead's own edge, it cannot go round.
+Standing in the queue before the stalled edge itself, the pair leaves from the lane it is in, and the cars
+ahead of it there that were to join the same queue turn off first (event ``jam_diverted``). A queue that
+forms behind the lead it cannot go round.
 """
 
 from __future__ import annotations
@@ -66,6 +68,15 @@ class RouteBridge(Protocol):
     def queue_heads(self, edge: str, next_edge: str) -> list[tuple[int, float]]: ...
 
     def weigh_edges(self, travel_time_s: dict[str, float], hold_s: float) -> None: ...
+
+    def lane_queue(self, vid: str) -> tuple[int, float]: ...
+
+    def queue_ahead(self, vid: str) -> list[tuple[str, str | None]]: ...
+
+    def lane_leads_to(self, vid: str, edge: str) -> bool: ...
+
+    def divert(self, vid: str, keep_off: set[str], min_ahead_m: float, continue_m: float = 300.0,
+               from_its_lane: bool = False) -> str | None: ...  # fmt: skip
 
 
 class EgoRoute:
@@ -166,11 +177,23 @@ class EgoRoute:
         for j in range(i + 1, len(edges) - 1):
             if ahead > JAM_LOOK_M:
                 break
-            if j > d:
-                heads = self.bridge.queue_heads(edges[j], edges[j + 1])
-                if heads and all(n >= STALL_MIN_HALTING and wait >= STALL_WAIT_S for n, wait in heads):
-                    stalled[j] = min(n for n, _ in heads) * STALL_HEADWAY_S
+            heads = self.bridge.queue_heads(edges[j], edges[j + 1])
+            if heads and all(n >= STALL_MIN_HALTING and wait >= STALL_WAIT_S for n, wait in heads):
+                stalled[j] = min(n for n, _ in heads) * STALL_HEADWAY_S
             ahead += chainer.length.get(edges[j], 0.0)
+        # too near the end of its edge to change lanes, the front of the pair stands in a queue that does not
+        # move, on the next edge or in its own lane (whose turn may lead onto a stalled lane of a road that
+        # flows on another: Krems -24980485#0, seed 6, a left turn onto the stalled one of two lanes): the
+        # way round leaves from the lane it is on, and the cars ahead of it in that lane that were to take
+        # the same turn are let out first (``_clear_the_way``)
+        if d == i + 1:
+            n, wait = self.bridge.lane_queue(vid)
+            if n >= STALL_MIN_HALTING and wait >= STALL_WAIT_S:
+                stalled[d] = max(stalled.get(d, 0.0), n * STALL_HEADWAY_S)
+        escape = d == i + 1 and d in stalled
+        if escape:
+            d = i
+        stalled = {j: cost for j, cost in stalled.items() if j > d}
         self._queued = {e: q for e, q in self._queued.items() if q[1] > t}
         if not stalled:
             return None
@@ -189,22 +212,47 @@ class EgoRoute:
         old = edges[d : r + 1]
         if len(leg) < 2 or leg[0] != edges[d] or leg[-1] != edges[r] or leg == old or chainer.turns_back(leg):
             return None
+        if escape and not self.bridge.lane_leads_to(vid, leg[1]):
+            return None
         before, after = cost(old), cost(leg)
         if after + REPLAN_GAIN_S > before:
             return None
         route = [*edges[:d], *leg, *edges[r + 1 :]]
-        around = route[max(0, d - LOOP_CONTEXT_EDGES) : d + len(leg) + LOOP_CONTEXT_EDGES]
-        junctions = [chainer.to_node.get(e, e) for e in around]
-        if len(set(junctions)) < len(junctions):  # a loop back through a junction passed
+        c = LOOP_CONTEXT_EDGES
+        # a loop back through a junction passed, unless the route already looped there (round a block at its
+        # end: Krems seed 6, every way round a gridlock was refused for the old route's own loop)
+        looped_before = self._repassed(edges[max(0, d - c) : r + 1 + c])
+        if self._repassed(route[max(0, d - c) : d + len(leg) + c]) - looped_before:
             return None
         if vid == LEAD_ID and not self.bridge.replace_route(LEAD_ID, route[i:]):
             return None
+        if escape:
+            self._clear_the_way(vid, edges[i + 1])
         edges[:] = route  # in place: shared with the ego's controller
         self._lead_pending = []
         self.replans += 1
         self.emit(SumoEvent("route_replanned", vid, f"round a stalled queue on {', '.join(seen)}: "
                             f"{before:.0f} s -> {after:.0f} s", before - after))  # fmt: skip
         return d + 1
+
+    def _repassed(self, edges: list[str]) -> set[str]:
+        """The junctions ``edges`` lead into more than once."""
+        junctions = [self.chainer.to_node.get(e, e) for e in edges]
+        return {j for j in junctions if junctions.count(j) > 1}
+
+    def _clear_the_way(self, vid: str, stalled_edge: str) -> None:
+        """The cars ahead of ``vid`` in its lane that were to join the stalled queue on ``stalled_edge`` turn
+        off, right or straight, from the lane they stand in (``cut_in_diverted``'s way out), as drivers do
+        who see the road they were to take blocked: each held the pair behind it for as long as the queue
+        stood (Krems -24980485#0, seed 6: 160 s behind one car waiting to turn left into a gridlock)."""
+        for car, next_edge in self.bridge.queue_ahead(vid):
+            if next_edge != stalled_edge:
+                continue
+            out = self.bridge.divert(car, {stalled_edge}, 0.0, from_its_lane=True)
+            if out is not None:
+                self.emit(
+                    SumoEvent("jam_diverted", car, f"turns onto {out}: {stalled_edge} ahead is stalled")
+                )
 
     def _legs(self, pairs: list[tuple[str, str]]) -> dict[tuple[str, str], list[str]]:
         legs = {}

@@ -483,6 +483,40 @@ class SumoBridge:
             out.append((lane_api.getLastStepHaltingNumber(lane), wait))
         return out
 
+    def lane_queue(self, vid: str) -> tuple[int, float]:
+        """(vehicles halting on the lane ``vid`` is on, the time its front vehicle has waited within SUMO's
+        waiting-time memory [s]); (0, 0) in a junction or at the roadside."""
+        lane = self._sumo.vehicle.getLaneID(vid)
+        if not lane or lane.startswith(":"):
+            return 0, 0.0
+        ids = self._sumo.lane.getLastStepVehicleIDs(lane)  # back to front
+        return self._sumo.lane.getLastStepHaltingNumber(lane), self._sumo.vehicle.getAccumulatedWaitingTime(
+            ids[-1]
+        )
+
+    def queue_ahead(self, vid: str) -> list[tuple[str, str | None]]:
+        """The vehicles ahead of ``vid`` on its lane, front first, each with the next edge of its route (None
+        at its route's end); [] in a junction or at the roadside."""
+        veh = self._sumo.vehicle
+        lane = veh.getLaneID(vid)
+        if not lane or lane.startswith(":"):
+            return []
+        ids = self._sumo.lane.getLastStepVehicleIDs(lane)  # back to front
+        ahead = ids[ids.index(vid) + 1 :] if vid in ids else ()
+        out = []
+        for car in reversed(ahead):
+            route, i = veh.getRoute(car), veh.getRouteIndex(car)
+            out.append((car, route[i + 1] if 0 <= i < len(route) - 1 else None))
+        return out
+
+    def lane_leads_to(self, vid: str, edge: str) -> bool:
+        """Whether the lane ``vid`` is on has a connection onto ``edge`` (it can go there without a lane
+        change)."""
+        lane = self._sumo.vehicle.getLaneID(vid)
+        return bool(lane) and any(
+            link[0].rsplit("_", 1)[0] == edge for link in self._sumo.lane.getLinks(lane)
+        )
+
     def weigh_edges(self, travel_time_s: dict[str, float], hold_s: float) -> None:
         """SUMO's router (``find_route``) takes these travel times for routes entering the edges within the
         next ``hold_s`` seconds (global edge weights; SCVs' rerouting devices keep their own)."""
@@ -491,14 +525,17 @@ class SumoBridge:
             self._sumo.edge.adaptTraveltime(edge, tt, t, t + hold_s)
 
     def divert(
-        self, vid: str, keep_off: set[str], min_ahead_m: float, continue_m: float = 300.0
-    ) -> str | None:
+        self, vid: str, keep_off: set[str], min_ahead_m: float, continue_m: float = 300.0,
+        from_its_lane: bool = False,
+    ) -> str | None:  # fmt: skip
         """Send ``vid`` off the edges ``keep_off`` at the first junction at least ``min_ahead_m`` ahead where
         one of its lanes leads right or straight onto another road (never a left turn: waiting in the junction
         for a gap in the oncoming traffic, the car held up the participant behind it, 7 s on Monaco
         166009792#2; never a U-turn), then on along that road for about
-        ``continue_m`` (straight on where it can, still off ``keep_off``). Returns the edge it turns onto,
-        or None when it already leaves ``keep_off`` within that stretch or no junction offers a way out."""
+        ``continue_m`` (straight on where it can, still off ``keep_off``). With ``from_its_lane`` the way
+        out at the end of its own edge must leave from the lane it is on (a car standing in a queue cannot
+        change lanes). Returns the edge it turns onto, or None when it already leaves ``keep_off`` within
+        that stretch or no junction offers a way out."""
         veh, lane_api = self._sumo.vehicle, self._sumo.lane
         try:
             route, i = list(veh.getRoute(vid)), veh.getRouteIndex(vid)
@@ -515,7 +552,8 @@ class SumoBridge:
                 ahead += lane_api.getLength(f"{route[k]}_0")
             if ahead < min_ahead_m:
                 continue
-            out = self._exits(route[k], keep_off | {route[k]}, prefer="rs", only="rs")
+            lanes = [int(lane.rsplit("_", 1)[1])] if from_its_lane and k == i else None
+            out = self._exits(route[k], keep_off | {route[k]}, prefer="rs", only="rs", lanes=lanes)
             if not out:
                 continue
             new = [*route[i : k + 1], out[0]]
@@ -527,11 +565,13 @@ class SumoBridge:
             return out[0] if self._set_route(vid, new) is None else None
         return None
 
-    def _exits(self, edge: str, avoid: set[str], prefer: str = "rls", only: str = "rls") -> list[str]:
-        """Edges a passenger car can reach from ``edge`` at its end junction in the directions ``only``,
-        outside ``avoid``, no U-turns, ordered by the directions in ``prefer`` (r right, l left, s straight)."""
+    def _exits(self, edge: str, avoid: set[str], prefer: str = "rls", only: str = "rls",
+               lanes: list[int] | None = None) -> list[str]:  # fmt: skip
+        """Edges a passenger car can reach from ``edge`` (from its ``lanes``, default all) at its end junction
+        in the directions ``only``, outside ``avoid``, no U-turns, ordered by the directions in ``prefer``
+        (r right, l left, s straight)."""
         found: dict[str, int] = {}
-        for n in range(self._sumo.edge.getLaneNumber(edge)):
+        for n in lanes if lanes is not None else range(self._sumo.edge.getLaneNumber(edge)):
             # link tuples: (toLane, hasPrio, isOpen, hasFoe, via, state, direction, length)
             for link in self._sumo.lane.getLinks(f"{edge}_{n}"):
                 to, direction = link[0].rsplit("_", 1)[0], link[6].lower()

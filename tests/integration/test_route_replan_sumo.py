@@ -59,3 +59,56 @@ def test_a_stalled_queue_is_read_per_lane_onward_and_the_router_goes_round_it_wh
         assert bridge.find_route("SA", "BE") == ["SA", "AB", "BE"]  # the queue's cost held 30 s
     finally:
         bridge.close()
+
+
+@pytest.fixture(scope="module")
+def fork(tmp_path_factory):
+    """W to E through A, with a road off to the right (AD) and one to the left (AN) at A; two lanes on WA,
+    the right one for AD and E, the left one for N and E."""
+    d = tmp_path_factory.mktemp("fork")
+    nodes = {"W": (-300, 0), "A": (0, 0), "E": (300, 0), "D": (0, -300), "N": (0, 300)}
+    edges = {"WA": ("W", "A", 3, 2), "AE": ("A", "E", 3), "AD": ("A", "D", 2), "AN": ("A", "N", 2)}
+    plain_net(d, nodes, edges, priority_nodes=["A"])
+    (d / "signs.add.xml").write_text("<additional/>")
+    (d / "r.rou.xml").write_text(
+        '<routes><route id="r" edges="WA AE"/>'
+        '<flow id="f" route="r" begin="0" end="30" period="3" departLane="0" departSpeed="max"/></routes>'
+    )
+    (d / "s.sumocfg").write_text(
+        '<configuration><input><net-file value="n.net.xml"/><route-files value="r.rou.xml"/></input>'
+        '<processing><time-to-teleport value="-1"/></processing></configuration>'
+    )
+    return d
+
+
+def test_the_cars_queued_ahead_are_read_front_first_and_one_turns_off_only_from_the_lane_it_stands_in(fork):
+    bridge = SumoBridge(fork / "s.sumocfg", seed=1, step_s=STEP_S)
+    sumo = bridge._sumo
+    try:
+        held = None
+        for _ in range(int(60 / STEP_S)):
+            bridge.advance()
+            on_wa = sumo.lane.getLastStepVehicleIDs("WA_0")
+            if held is None and on_wa and sumo.vehicle.getLanePosition(on_wa[-1]) > 200.0:
+                held = on_wa[-1]
+                sumo.vehicle.setSpeed(held, 0.0)  # the front car stops at the junction: a queue behind it
+        queue = sumo.lane.getLastStepVehicleIDs("WA_0")[::-1]  # front first
+        assert held == queue[0] and len(queue) >= 4
+        assert bridge.queue_ahead(queue[3]) == [(queue[0], "AE"), (queue[1], "AE"), (queue[2], "AE")]
+        assert bridge.queue_ahead(held) == []
+        halting, wait_s = bridge.lane_queue(queue[3])
+        assert halting == sumo.lane.getLastStepHaltingNumber("WA_0") >= 3
+        assert wait_s == pytest.approx(sumo.vehicle.getAccumulatedWaitingTime(held))
+        assert wait_s > 20.0  # the front car's, held since it stopped
+        assert bridge.lane_leads_to(held, "AD") and not bridge.lane_leads_to(held, "AN")  # AN: the left lane
+        assert bridge.divert(held, {"AE"}, 0.0, from_its_lane=True) == "AD"  # right, from the lane it is in
+        assert sumo.vehicle.getRoute(held) == ("WA", "AD")
+        sumo.vehicle.add("left", "r", departLane="1", departPos="250", departSpeed="0")
+        sumo.vehicle.setSpeed("left", 0.0)
+        bridge.advance()
+        assert sumo.vehicle.getLaneID("left") == "WA_1"
+        # from the left lane: straight on is kept off, left is never taken, right is not from this lane
+        assert bridge.divert("left", {"AE"}, 0.0, from_its_lane=True) is None
+        assert bridge.divert("left", {"AE"}, 0.0) == "AD"  # from any lane of its edge
+    finally:
+        bridge.close()

@@ -179,6 +179,10 @@ class JamBridge:
         self.asked: list[tuple[str, str]] = []
         self.replaced: list[tuple[str, list[str]]] = []
         self.heads_asked = 0
+        self.ahead: list[tuple[str, str | None]] = []  # the cars ahead of the lead in its lane, front first
+        self.own_lane = (0, 0.0)  # halting in the lead's lane, its front car's wait [s]
+        self.lane_ok = True  # the lead's lane leads onto the way round
+        self.diverted: list[tuple[str, set[str], bool]] = []
 
     def route_edge_left(self, vid):
         assert vid == LEAD_ID
@@ -207,6 +211,20 @@ class JamBridge:
 
     def extend_route(self, vid, edges):
         return True
+
+    def lane_queue(self, vid):
+        return self.own_lane
+
+    def queue_ahead(self, vid):
+        return self.ahead
+
+    def lane_leads_to(self, vid, edge):
+        assert edge == "x1"  # the way round's first edge
+        return self.lane_ok
+
+    def divert(self, vid, keep_off, min_ahead_m, continue_m=300.0, from_its_lane=False):
+        self.diverted.append((vid, set(keep_off), from_its_lane))
+        return None if vid == "stuck" else "y1"
 
 
 def _jam_route(bridge, lead=True, t_s=REPLAN_EVERY_S):
@@ -298,3 +316,52 @@ def test_no_way_round_that_loops_back_through_a_junction_it_passes():
     r.chainer.to_node["x2"] = r.chainer.to_node["e0"]  # as if x2 ended where e0 does, before the way round
     assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) is None
     assert r.edges == ["e0", "e1", "e2", "e3", "e4"] and not events and not bridge.replaced
+
+
+def test_a_loop_the_route_already_makes_does_not_stop_a_way_round():
+    bridge = JamBridge()
+    r, events = _jam_route(bridge)
+    r.chainer.to_node["e4"] = r.chainer.to_node["e1"]  # the route comes back to e1's end junction after e4
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 10.0) == 2
+    assert r.edges == ["e0", *ROUND, "e4"] and events[0].kind == "route_replanned"
+
+
+def test_standing_before_the_stalled_edge_the_pair_leaves_from_its_lane_and_the_cars_ahead_turn_off_first():
+    bridge = JamBridge(lead_edge="e1", lead_left_m=10.0)  # e2 next: too near to change lanes for another turn
+    bridge.ahead = [("scv1", "e2"), ("scv2", "e3"), ("stuck", "e2")]
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) == 2
+    assert bridge.asked == [("e1", "e3")] and r.edges == ["e0", *ROUND, "e4"]
+    assert bridge.replaced == [(LEAD_ID, r.edges[1:])]
+    # those bound for the stalled edge turn off from the lane they stand in; scv2 goes elsewhere anyway
+    assert bridge.diverted == [("scv1", {"e2"}, True), ("stuck", {"e2"}, True)]
+    assert [(e.kind, e.vehicle) for e in events] == [("jam_diverted", "scv1"), ("route_replanned", LEAD_ID)]
+
+
+def test_standing_before_the_stalled_edge_in_a_lane_that_does_not_lead_round_the_pair_stays():
+    bridge = JamBridge(lead_edge="e1", lead_left_m=10.0)
+    bridge.lane_ok = False
+    bridge.ahead = [("scv1", "e2")]
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) is None
+    assert r.edges == ["e0", "e1", "e2", "e3", "e4"] and not events and not bridge.diverted
+    assert not bridge.replaced
+
+
+def test_standing_in_a_stalled_queue_in_its_own_lane_the_pair_takes_another_turn():
+    # the next road flows on another lane, but the lead's lane turns onto its stalled one: nothing on e2 is
+    # stalled as a whole, the queue the lead stands in is
+    bridge = JamBridge(lead_edge="e1", lead_left_m=10.0, queues={})
+    bridge.own_lane = (4, STALL_WAIT_S + 5.0)
+    bridge.ahead = [("scv1", "e2")]
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) == 2
+    assert r.edges == ["e0", *ROUND, "e4"] and bridge.weights == {
+        "e2": pytest.approx(10.0 + 4 * STALL_HEADWAY_S)
+    }
+    assert bridge.diverted == [("scv1", {"e2"}, True)]
+    # a queue in its lane whose front car has waited less than a red lasts: it waits
+    bridge = JamBridge(lead_edge="e1", lead_left_m=10.0, queues={})
+    bridge.own_lane = (4, STALL_WAIT_S - 15.0)
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) is None and not events
