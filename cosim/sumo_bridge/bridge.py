@@ -485,14 +485,19 @@ class SumoBridge:
 
     def lane_queue(self, vid: str) -> tuple[int, float]:
         """(vehicles halting on the lane ``vid`` is on, the time its front vehicle has waited within SUMO's
-        waiting-time memory [s]); (0, 0) in a junction or at the roadside."""
-        lane = self._sumo.vehicle.getLaneID(vid)
+        waiting-time memory [s], 0 while a red or yellow light at the lane's end holds it); (0, 0) in a
+        junction or at the roadside."""
+        veh = self._sumo.vehicle
+        lane = veh.getLaneID(vid)
         if not lane or lane.startswith(":"):
             return 0, 0.0
         ids = self._sumo.lane.getLastStepVehicleIDs(lane)  # back to front
-        return self._sumo.lane.getLastStepHaltingNumber(lane), self._sumo.vehicle.getAccumulatedWaitingTime(
-            ids[-1]
-        )
+        halting, front = self._sumo.lane.getLastStepHaltingNumber(lane), ids[-1]
+        lights = veh.getNextTLS(front)  # (id, link index, distance [m], state), nearest first
+        to_end = self._sumo.lane.getLength(lane) - veh.getLanePosition(front)
+        if lights and lights[0][2] <= to_end + 1.0 and lights[0][3] in "rRyYu":
+            return halting, 0.0
+        return halting, veh.getAccumulatedWaitingTime(front)
 
     def queue_ahead(self, vid: str) -> list[tuple[str, str | None]]:
         """The vehicles ahead of ``vid`` on its lane, front first, each with the next edge of its route (None

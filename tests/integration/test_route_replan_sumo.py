@@ -61,14 +61,12 @@ def test_a_stalled_queue_is_read_per_lane_onward_and_the_router_goes_round_it_wh
         bridge.close()
 
 
-@pytest.fixture(scope="module")
-def fork(tmp_path_factory):
+def _fork(d, options=()):
     """W to E through A, with a road off to the right (AD) and one to the left (AN) at A; two lanes on WA,
     the right one for AD and E, the left one for N and E."""
-    d = tmp_path_factory.mktemp("fork")
     nodes = {"W": (-300, 0), "A": (0, 0), "E": (300, 0), "D": (0, -300), "N": (0, 300)}
     edges = {"WA": ("W", "A", 3, 2), "AE": ("A", "E", 3), "AD": ("A", "D", 2), "AN": ("A", "N", 2)}
-    plain_net(d, nodes, edges, priority_nodes=["A"])
+    plain_net(d, nodes, edges, options=options)
     (d / "signs.add.xml").write_text("<additional/>")
     (d / "r.rou.xml").write_text(
         '<routes><route id="r" edges="WA AE"/>'
@@ -81,17 +79,55 @@ def fork(tmp_path_factory):
     return d
 
 
+@pytest.fixture(scope="module")
+def fork(tmp_path_factory):
+    return _fork(tmp_path_factory.mktemp("fork"))
+
+
+@pytest.fixture(scope="module")
+def fork_with_light(tmp_path_factory):
+    return _fork(tmp_path_factory.mktemp("fork_tls"), options=["--tls.set", "A"])
+
+
+def _queue_at_a(bridge) -> str:
+    """Run the flow with its first car held 75 m before A; returns the held car."""
+    sumo, held = bridge._sumo, None
+    for _ in range(int(60 / STEP_S)):
+        bridge.advance()
+        on_wa = sumo.lane.getLastStepVehicleIDs("WA_0")
+        if held is None and on_wa and sumo.vehicle.getLanePosition(on_wa[-1]) > 200.0:
+            held = on_wa[-1]
+            sumo.vehicle.setSpeed(held, 0.0)  # the front car stops: a queue behind it
+    return held
+
+
+def test_a_queue_held_by_a_red_light_has_not_waited_for_a_way_round(fork_with_light):
+    bridge = SumoBridge(fork_with_light / "s.sumocfg", seed=1, step_s=STEP_S)
+    sumo = bridge._sumo
+    try:
+        held = _queue_at_a(bridge)
+        last = sumo.lane.getLastStepVehicleIDs("WA_0")[0]
+        n_links = len(sumo.trafficlight.getRedYellowGreenState("A"))
+        sumo.trafficlight.setRedYellowGreenState("A", "r" * n_links)
+        bridge.advance()
+        assert bridge.lane_queue(last) == (sumo.lane.getLastStepHaltingNumber("WA_0"), 0.0)
+        sumo.trafficlight.setRedYellowGreenState("A", "G" * n_links)
+        bridge.advance()
+        halting, wait_s = bridge.lane_queue(last)  # standing through a green: it waits for something else
+        assert (
+            halting >= 3
+            and wait_s == pytest.approx(sumo.vehicle.getAccumulatedWaitingTime(held))
+            and wait_s > 20
+        )
+    finally:
+        bridge.close()
+
+
 def test_the_cars_queued_ahead_are_read_front_first_and_one_turns_off_only_from_the_lane_it_stands_in(fork):
     bridge = SumoBridge(fork / "s.sumocfg", seed=1, step_s=STEP_S)
     sumo = bridge._sumo
     try:
-        held = None
-        for _ in range(int(60 / STEP_S)):
-            bridge.advance()
-            on_wa = sumo.lane.getLastStepVehicleIDs("WA_0")
-            if held is None and on_wa and sumo.vehicle.getLanePosition(on_wa[-1]) > 200.0:
-                held = on_wa[-1]
-                sumo.vehicle.setSpeed(held, 0.0)  # the front car stops at the junction: a queue behind it
+        held = _queue_at_a(bridge)
         queue = sumo.lane.getLastStepVehicleIDs("WA_0")[::-1]  # front first
         assert held == queue[0] and len(queue) >= 4
         assert bridge.queue_ahead(queue[3]) == [(queue[0], "AE"), (queue[1], "AE"), (queue[2], "AE")]

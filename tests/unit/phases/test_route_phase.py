@@ -363,5 +363,17 @@ def test_standing_in_a_stalled_queue_in_its_own_lane_the_pair_takes_another_turn
     # a queue in its lane whose front car has waited less than a red lasts: it waits
     bridge = JamBridge(lead_edge="e1", lead_left_m=10.0, queues={})
     bridge.own_lane = (4, STALL_WAIT_S - 15.0)
+    bridge.ahead = [("scv1", "e2")]
     r, events = _jam_route(bridge)
     assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) is None and not events
+
+
+@pytest.mark.parametrize(
+    "ahead", [[], [("scv1", "x1")]], ids=["the lead heads it", "the front car turns elsewhere"]
+)
+def test_a_long_wait_in_its_own_lane_is_no_stalled_turn_unless_a_car_bound_the_same_way_heads_it(ahead):
+    bridge = JamBridge(lead_edge="e1", lead_left_m=10.0, queues={})
+    bridge.own_lane = (4, STALL_WAIT_S + 5.0)  # the lead waiting for the ego or a gap, or behind another turn
+    bridge.ahead = ahead
+    r, events = _jam_route(bridge)
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) is None and not events and not bridge.diverted
