@@ -37,6 +37,10 @@ JAM_LOOK_M = 600.0  # ... this far ahead of it [m]
 # the reds on the benchmark maps (45-57 s), so a queue at a light that clears each cycle is not one
 STALL_WAIT_S = 60.0
 STALL_MIN_HALTING = 2
+# ... and a queue the pair stands in is stalled only when its front has come less than this far over
+# STALL_WAIT_S: the front car of a queue that drains slowly at a give-way line has waited a minute in it too
+# (Krems, make experiment P1, 335 s: the pair left a queue it crept through, 80 m in 55 s) [m]
+STALL_PROGRESS_M = 7.5
 # the route's cost of a stalled queue: each car in it is costed this much, less than a saturated merge
 # takes (a minor street merging into 1800 veh/h: HCM 2010 potential capacity ~70 veh/h, eq. 19-32 with
 # critical gap 6.9 s and follow-up time 3.3 s, one car in ~50 s; 60-75 s measured at Monaco 25193333), so
@@ -107,6 +111,7 @@ class EgoRoute:
         self._queued: dict[str, tuple[float, float]] = {}
         self.extensions = 0
         self.replans = 0
+        self._front_track: list[tuple[float, float]] = []  # (time [s], the pair's front along the route [m])
 
     @property
     def chainer(self) -> RouteChainer:
@@ -186,7 +191,8 @@ class EgoRoute:
         # flows on another: Krems -24980485#0, seed 6, a left turn onto the stalled one of two lanes): the
         # way round leaves from the lane it is on, and the cars ahead of it in that lane that were to take
         # the same turn are let out first (``_clear_the_way``)
-        if d == i + 1 and self._held_by_the_same_turn(vid, edges[d]):
+        standing = self._standing_still(t, i, left)
+        if d == i + 1 and standing and self._held_by_the_same_turn(vid, edges[d]):
             n, wait = self.bridge.lane_queue(vid)
             if n >= STALL_MIN_HALTING and wait >= STALL_WAIT_S:
                 stalled[d] = max(stalled.get(d, 0.0), n * STALL_HEADWAY_S)
@@ -234,6 +240,16 @@ class EgoRoute:
         self.emit(SumoEvent("route_replanned", vid, f"round a stalled queue on {', '.join(seen)}: "
                             f"{before:.0f} s -> {after:.0f} s", before - after))  # fmt: skip
         return d + 1
+
+    def _standing_still(self, t: float, i: int, left: float) -> bool:
+        """Whether the front of the pair (on route edge ``i``, ``left`` metres before its end) has come less
+        than STALL_PROGRESS_M along the route over the last STALL_WAIT_S (tracked at every look)."""
+        s = sum(self.chainer.length.get(e, 0.0) for e in self.edges[: i + 1]) - left
+        track = self._front_track
+        track.append((t, s))
+        while len(track) > 1 and track[1][0] <= t - STALL_WAIT_S:
+            track.pop(0)  # the oldest kept is the last one at least STALL_WAIT_S back
+        return track[0][0] <= t - STALL_WAIT_S and s - track[0][1] < STALL_PROGRESS_M
 
     def _held_by_the_same_turn(self, vid: str, next_edge: str) -> bool:
         """Whether another car heads the queue ``vid`` stands in and is bound for ``next_edge`` too. The front

@@ -348,6 +348,18 @@ def test_standing_before_the_stalled_edge_in_a_lane_that_does_not_lead_round_the
     assert not bridge.replaced
 
 
+def _look_until(r, bridge, t_s: float, creep_m: float = 0.0):
+    """Let the route look every REPLAN_EVERY_S until ``t_s``, the lead ``creep_m`` nearer its edge's end
+    each time; returns what the last look changed."""
+    while r.world.t_s < t_s:
+        changed = r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0)
+        if changed is not None:
+            return changed
+        r.world.t_s += REPLAN_EVERY_S
+        bridge.lead_left_m = max(0.0, bridge.lead_left_m - creep_m)
+    return r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0)
+
+
 def test_standing_in_a_stalled_queue_in_its_own_lane_the_pair_takes_another_turn():
     # the next road flows on another lane, but the lead's lane turns onto its stalled one: nothing on e2 is
     # stalled as a whole, the queue the lead stands in is
@@ -355,7 +367,9 @@ def test_standing_in_a_stalled_queue_in_its_own_lane_the_pair_takes_another_turn
     bridge.own_lane = (4, STALL_WAIT_S + 5.0)
     bridge.ahead = [("scv1", "e2")]
     r, events = _jam_route(bridge)
-    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) == 2
+    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) is None  # the lead has stood there for no time yet
+    r.world.t_s += REPLAN_EVERY_S
+    assert _look_until(r, bridge, 2 * REPLAN_EVERY_S + STALL_WAIT_S) == 2  # ... and now for STALL_WAIT_S
     assert r.edges == ["e0", *ROUND, "e4"] and bridge.weights == {
         "e2": pytest.approx(10.0 + 4 * STALL_HEADWAY_S)
     }
@@ -376,4 +390,14 @@ def test_a_long_wait_in_its_own_lane_is_no_stalled_turn_unless_a_car_bound_the_s
     bridge.own_lane = (4, STALL_WAIT_S + 5.0)  # the lead waiting for the ego or a gap, or behind another turn
     bridge.ahead = ahead
     r, events = _jam_route(bridge)
-    assert r.update(EXTEND_AHEAD_M + 1.0, 0, 60.0) is None and not events and not bridge.diverted
+    assert _look_until(r, bridge, 3 * STALL_WAIT_S) is None and not events and not bridge.diverted
+
+
+def test_a_queue_it_creeps_through_is_no_stalled_turn():
+    # the front car has waited long in a queue that drains slowly at a line, the pair creeping on
+    bridge = JamBridge(lead_edge="e1", lead_left_m=99.0, queues={})
+    bridge.own_lane = (4, STALL_WAIT_S + 5.0)
+    bridge.ahead = [("scv1", "e2")]
+    r, events = _jam_route(bridge)
+    creep = 1.5 * route_phase.STALL_PROGRESS_M * REPLAN_EVERY_S / STALL_WAIT_S  # 11 m a minute
+    assert _look_until(r, bridge, 3 * STALL_WAIT_S, creep_m=creep) is None and not events
