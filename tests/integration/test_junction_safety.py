@@ -29,7 +29,6 @@ from cosim.scenario.conflicts import (
     geometric_prohibitions,
     internal_stop_fixes,
     looping_turn_deletions,
-    oneway_merge_spreads,
     overlapping_end_deletions,
     separated_shapes,
     sibling_change_bars,
@@ -65,7 +64,6 @@ def test_built_network_has_no_unsafe_junction_geometry(scenarios, name):
     assert turnaround_deletions(net) == []  # no U-turn where the street goes on
     assert fan_out_deletions(net) == []  # one lane feeds one lane, but where a short road's lanes part ways
     assert stranded_lane_connections(net) == []  # such a road's lanes are all fed
-    assert oneway_merge_spreads(net) == ([], [])  # no one-way road ends between a two-way road's directions
     _, pairs = geometric_prohibitions(scn.net_file)
     assert pairs == [], pairs[:5]  # every pair of movements closer than a car's width is a foe pair
     _, moved = internal_stop_fixes(scn.net_file)
