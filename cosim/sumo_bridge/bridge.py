@@ -476,7 +476,7 @@ class SumoBridge:
         out = []
         for i in range(self._sumo.edge.getLaneNumber(edge)):
             lane = f"{edge}_{i}"
-            if not any(link[0].rsplit("_", 1)[0] == next_edge for link in lane_api.getLinks(lane)):
+            if not self._lane_leads_onto(lane, next_edge):
                 continue
             ids = lane_api.getLastStepVehicleIDs(lane)  # back to front
             wait = self._sumo.vehicle.getAccumulatedWaitingTime(ids[-1]) if ids else 0.0
@@ -518,9 +518,11 @@ class SumoBridge:
         """Whether the lane ``vid`` is on has a connection onto ``edge`` (it can go there without a lane
         change)."""
         lane = self._sumo.vehicle.getLaneID(vid)
-        return bool(lane) and any(
-            link[0].rsplit("_", 1)[0] == edge for link in self._sumo.lane.getLinks(lane)
-        )
+        return bool(lane) and self._lane_leads_onto(lane, edge)
+
+    def _lane_leads_onto(self, lane: str, edge: str) -> bool:
+        """Whether ``lane`` has a connection onto ``edge``."""
+        return any(link[0].rsplit("_", 1)[0] == edge for link in self._sumo.lane.getLinks(lane))
 
     def weigh_edges(self, travel_time_s: dict[str, float], hold_s: float) -> None:
         """SUMO's router (``find_route``) takes these travel times for routes entering the edges within the
