@@ -48,7 +48,7 @@ class EgoConfig:
     route: tuple[str, ...] = ()  # edge ids; empty = the scenario's predefined route (scenario.demand)
     depart_s: float = 0.0  # when the ego and the lead ahead of it are placed on the route [s]
     lead_vehicle: bool = True  # a SUMO vehicle on the same route, ahead of the ego, to follow
-    lead_waits_beyond_m: float = 40.0  # the lead slows down for the ego beyond this gap (0 = never) [m]
+    lead_waits_beyond_m: float = 40.0  # longest gap the lead lets grow (0 = never) [m]
     car: CarParams = field(default_factory=CarParams)  # the MuJoCo car (mass, tyres, power, brakes ...)
     driver: DriverConfig = field(
         default_factory=DriverConfig

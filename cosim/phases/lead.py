@@ -7,9 +7,11 @@ considerate human leader, so the participant spends the drive following it.
   it), not in SUMO's own choice; it stops behind the last car of a queue in that lane rather than drive
   past the queue, and standing short of that lane beside a queue or the ego, it noses in.
 - It drives a little below the limit (``sumo_bridge.LEAD_SPEED_FACTOR``) and never lets the gap along
-  the route grow beyond ``wait_beyond_m``: its speed is capped at the ego's plus (wait_beyond_m - gap) /
-  ``CLOSE_TIME_S``, so beyond that gap it drives slower than the ego, and stands while the ego stands
-  (after a red light that stopped only the ego, behind a slow participant).
+  the route grow beyond an allowance: ``ALLOWANCE_S`` at the ego's recent top speed, at least
+  ``ALLOWANCE_MIN_M`` and at most ``wait_beyond_m`` (all of ``wait_beyond_m`` while the ego stands). Its
+  speed is capped at the ego's plus (allowance - gap) / ``CLOSE_TIME_S``, so beyond that gap it drives
+  slower than the ego, and stands while the ego stands (after a red light that stopped only the ego,
+  behind a slow participant).
 - At a line where it must yield (stop or give-way sign, minor road, priority to the right, roundabout
   entry, a permissive green for a left turn) it waits until the ego has closed up behind it (or as far as
   a car between them lets it) and the
@@ -54,6 +56,18 @@ from cosim.phases.ego import PATH_HALF_WIDTH_M, FoesBridge, priority_gap_s, pull
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this time [s]
+# while the ego drives, the gap the lead lets grow is this time at the ego's speed, at least ALLOWANCE_MIN_M
+# and at most wait_beyond_m: a considerate leader judges the follower's lag in seconds, not metres. With
+# wait_beyond_m alone, an ego creeping through a turn at 3 m/s had a 13-s gap behind the lead, and two cars
+# from the other approach merged in between them (Munich, experiment P1 system_B: lead as leader 0.76).
+# A standing ego still gets wait_beyond_m: a lead held within ALLOWANCE_MIN_M of an ego stopped at a red would
+# stand in the junction beyond it [s]
+ALLOWANCE_S = 3.0
+ALLOWANCE_MIN_M = 15.0
+# ... at the ego's recent top speed, which falls at most this fast: reckoned at its speed of the moment, an ego
+# braking behind the lead shrank the allowance, the lead braked for it, and the ego braked harder (Munich P1
+# baseline: 7 hard brakes instead of 1) [m/s^2]
+ALLOWANCE_SPEED_DECAY_MPS2 = 0.5
 YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
 EGO_CLOSE_M = 15.0  # ... until the ego is at most this far behind it [m]
 LIGHT_DECIDE_M = 70.0  # the lead decides whether to stop for the ego's sake this far before a light [m]
@@ -214,6 +228,7 @@ class LeadVehicle:
         self._pulled_over: str | None = None  # the lane beside which the lead stands to let cars pass
         self._rejoining = False  # ... and, told to rejoin, it has not driven off yet (maybe not on a lane)
         self.let_past = 0  # times the lead pulled over for cars between it and the ego
+        self._ego_top_speed = (0.0, 0.0)  # (when, the ego's recent top speed [m/s]) for the allowance
 
     def step(self, w: World) -> None:
         self.lead_is_leader = False
@@ -236,7 +251,9 @@ class LeadVehicle:
             return
         v_ego = float(w.speed_mps[ego])
         caps = []
-        ego_limit_m = self.wait_beyond_m * (BETWEEN_ALLOWANCE if self._between is not None else 1.0)
+        ego_limit_m = self._allowance_m(w.t_s, v_ego)
+        if self._between is not None:  # the ego follows the car between them, the lead keeps that car close
+            ego_limit_m = self.wait_beyond_m * BETWEEN_ALLOWANCE
         if self.wait_beyond_m > 0:
             caps.append(_closing_cap(v_ego, self.gap_m, ego_limit_m))
             between = self._car_between(w)
@@ -255,6 +272,15 @@ class LeadVehicle:
         elif self._capped:
             self.bridge.cap_speed(LEAD_ID, None)
             self._capped = False
+
+    def _allowance_m(self, t: float, v_ego: float) -> float:
+        """How far the ego may fall behind before the lead waits for it [m] (ALLOWANCE_S)."""
+        t_last, v_top = self._ego_top_speed
+        v_top = max(v_ego, v_top - ALLOWANCE_SPEED_DECAY_MPS2 * (t - t_last))
+        self._ego_top_speed = (t, v_top)
+        if v_ego < STAND_MPS:
+            return self.wait_beyond_m
+        return min(self.wait_beyond_m, max(ALLOWANCE_MIN_M, v_top * ALLOWANCE_S))
 
     def _keep_to_the_egos_lane(self, w: World, lead: int) -> None:
         """Drive in the lane the ego's path takes on this edge: SUMO's own lane choice (its strategic look

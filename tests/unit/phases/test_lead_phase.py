@@ -160,6 +160,46 @@ def test_the_lead_waits_for_a_lagging_ego_and_stands_while_it_stands():
     assert sim.bridge.caps[-1] == 0.0  # the ego stands (a red light behind the lead): so does the lead
 
 
+def test_the_lead_lets_a_slow_ego_fall_behind_by_seconds_not_metres():
+    """Munich P1 system_B: the ego crept through a turn at 3 m/s, the lead drew 22-24 m ahead (within the
+    40-m allowance, 8 s at that speed) and two cars merged in between them. The allowance is ALLOWANCE_S
+    at the ego's speed (at least ALLOWANCE_MIN_M): 15 m at 3 m/s, so 25 m ahead the lead slows down."""
+    sim = fake_sim(gap_m=25.0, ego_speed=3.0)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting and sim.bridge.caps[-1] == pytest.approx(3.0 + (15.0 - 25.0) / 5.0)
+    # at 10 m/s the same 25 m is 2.5 s: within the 30-m allowance, the lead drives on
+    sim = fake_sim(gap_m=25.0, ego_speed=10.0)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert not lead.waiting and sim.bridge.caps[-1] == pytest.approx(10.0 + (30.0 - 25.0) / 5.0)
+
+
+def test_an_ego_braking_behind_the_lead_does_not_make_it_brake_too():
+    """Reckoned at the ego's speed of the moment, the allowance shrank as the ego braked, the lead braked
+    for it and the ego braked harder (Munich P1 baseline: 7 hard brakes instead of 1). It follows the ego's
+    recent top speed, which falls at ALLOWANCE_SPEED_DECAY_MPS2."""
+    sim = fake_sim(gap_m=25.0, ego_speed=10.0)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    sim.world.t_s, sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 1.0, 4.0
+    lead.step(sim.world)
+    allowance = 3.0 * (10.0 - 0.5 * 1.0)  # 28.5 m, not the 15 m of an ego at 4 m/s
+    assert not lead.waiting and sim.bridge.caps[-1] == pytest.approx(4.0 + (allowance - 25.0) / 5.0)
+    sim.world.t_s = 30.0  # 29 s later at 4 m/s it is a slow ego
+    lead.step(sim.world)
+    assert lead.waiting and sim.bridge.caps[-1] == pytest.approx(4.0 + (15.0 - 25.0) / 5.0)
+
+
+def test_a_standing_ego_lets_the_lead_clear_the_junction_ahead():
+    """Held within ALLOWANCE_MIN_M of an ego stopped at a red, the lead would stand in the junction beyond
+    the line: while the ego stands, the lead may draw ahead to wait_beyond_m."""
+    sim = fake_sim(gap_m=25.0, ego_speed=0.0)
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert not lead.waiting and sim.bridge.caps[-1] == pytest.approx((40.0 - 25.0) / 5.0)
+
+
 def test_the_lead_drives_freely_when_the_ego_follows_closely():
     sim = fake_sim(gap_m=15.0, ego_speed=10.0)
     lead = _lead(sim)
@@ -168,12 +208,12 @@ def test_the_lead_drives_freely_when_the_ego_follows_closely():
 
 
 def test_the_lead_stops_at_a_green_the_ego_would_miss():
-    sim = fake_sim(gap_m=30.0, ego_speed=8.0)
-    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 40.0, "G"), 3.0  # the ego needs (40+5+30)/8 ~ 9 s
+    sim = fake_sim(gap_m=20.0, ego_speed=8.0)
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 40.0, "G"), 3.0  # the ego needs (40+5+20)/8 ~ 8 s
     lead = _lead(sim)
     lead.step(sim.world)
     assert lead.waiting and sim.bridge.caps[-1] <= math.sqrt(2 * 2.0 * 39.0)  # braking for the line
-    sim2 = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim2 = fake_sim(gap_m=20.0, ego_speed=8.0)
     sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 40.0, "G"), 30.0  # long green: both get through
     lead2 = _lead(sim2)
     lead2.step(sim2.world)
@@ -181,20 +221,20 @@ def test_the_lead_stops_at_a_green_the_ego_would_miss():
 
 
 def test_the_lead_decides_again_when_the_ego_slows_down_before_a_green():
-    sim = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim = fake_sim(gap_m=20.0, ego_speed=8.0)
     sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 8.0
-    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 60.0, "G"), 15.0  # (60+5+30)/8 + 1.5 ~ 13 s: go
+    sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 60.0, "G"), 15.0  # (60+5+20)/8 + 1.5 ~ 12 s: go
     lead = _lead(sim)
     lead.step(sim.world)
     assert not lead.waiting
-    # the ego brakes for a curve: (55+5+30)/4 + 1.5 = 24 s > the 14 s of green left; the lead (8 m/s,
+    # the ego brakes for a curve: (55+5+20)/4 + 1.5 = 21.5 s > the 14 s of green left; the lead (8 m/s,
     # 16 m to stop at 2 m/s^2) can still stop 55 m before the line, so it does
     sim.world.speed_mps[sim.world.slot_of[EGO_ID]] = 4.0
     sim.bridge.tls, sim.bridge.green_left_s = ("J", 0, 55.0, "G"), 14.0
     lead.step(sim.world)
     assert lead.waiting
     # past the point where it could stop comfortably it goes on whatever the ego does
-    sim2 = fake_sim(gap_m=30.0, ego_speed=8.0)
+    sim2 = fake_sim(gap_m=20.0, ego_speed=8.0)
     sim2.world.speed_mps[sim2.world.slot_of[LEAD_ID]] = 12.0
     sim2.bridge.tls, sim2.bridge.green_left_s = ("J", 0, 60.0, "G"), 15.0
     lead2 = _lead(sim2)
@@ -596,7 +636,7 @@ def _stuck_in_lane_0(beside):
     there (id, gap, speed)."""
     sim = fake_sim(gap_m=20.0, ego_speed=0.0)
     w = sim.world
-    sim.ego.s_front_m = 0.0
+    sim.ego.s_front_m = 10.0
     sim.ego.path = RoutePath([(0.0, -10.0), (0.0, 200.0)], edge_lanes=[(0.0, 210.0, "b", 1)])
     sim.bridge.beside = beside
     lead = _lead(sim)
