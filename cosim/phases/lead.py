@@ -55,7 +55,7 @@ from cosim.phases.courtesy import COURTESY_AFTER_S, CourtesyYield
 from cosim.phases.ego import PATH_HALF_WIDTH_M, FoesBridge, priority_gap_s, pull_away_arrival
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
-CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this time [s]
+CLOSE_TIME_S = 5.0  # the lead closes a gap beyond its allowance (below) in about this time [s]
 # while the ego drives, the gap the lead lets grow is this time at the ego's speed, at least ALLOWANCE_MIN_M
 # and at most wait_beyond_m: a considerate leader judges the follower's lag in seconds, not metres. With
 # wait_beyond_m alone, an ego creeping through a turn at 3 m/s had a 13-s gap behind the lead, and two cars
@@ -64,9 +64,9 @@ CLOSE_TIME_S = 5.0  # the lead closes a gap beyond wait_beyond_m in about this t
 # stand in the junction beyond it [s]
 ALLOWANCE_S = 3.0
 ALLOWANCE_MIN_M = 15.0
-# ... at the ego's recent top speed, which falls at most this fast: reckoned at its speed of the moment, an ego
-# braking behind the lead shrank the allowance, the lead braked for it, and the ego braked harder (Munich P1
-# baseline: 7 hard brakes instead of 1) [m/s^2]
+# ... at the ego's recent top speed, which falls at most this fast: reckoned at its speed of the moment, the
+# allowance would shrink whenever the ego brakes and the lead would brake with it, a loop that only ever
+# slows the pair down [m/s^2]
 ALLOWANCE_SPEED_DECAY_MPS2 = 0.5
 YIELD_HOLD_M = 30.0  # the lead is held at a yield line this close to it ... [m]
 EGO_CLOSE_M = 15.0  # ... until the ego is at most this far behind it [m]

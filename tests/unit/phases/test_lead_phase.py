@@ -176,9 +176,9 @@ def test_the_lead_lets_a_slow_ego_fall_behind_by_seconds_not_metres():
 
 
 def test_an_ego_braking_behind_the_lead_does_not_make_it_brake_too():
-    """Reckoned at the ego's speed of the moment, the allowance shrank as the ego braked, the lead braked
-    for it and the ego braked harder (Munich P1 baseline: 7 hard brakes instead of 1). It follows the ego's
-    recent top speed, which falls at ALLOWANCE_SPEED_DECAY_MPS2."""
+    """Reckoned at the ego's speed of the moment, the allowance would shrink as the ego brakes, the lead
+    brake for it, and so on down. It follows the ego's recent top speed, which falls at
+    ALLOWANCE_SPEED_DECAY_MPS2."""
     sim = fake_sim(gap_m=25.0, ego_speed=10.0)
     lead = _lead(sim)
     lead.step(sim.world)
