@@ -251,7 +251,7 @@ class LeadVehicle:
             return
         v_ego = float(w.speed_mps[ego])
         caps = []
-        ego_limit_m = self._allowance_m(w.t_s, v_ego)
+        ego_limit_m = self._allowance_m(w.t_s, v_ego)  # every step: it keeps the ego's top speed up to date
         if self._between is not None:  # the ego follows the car between them, the lead keeps that car close
             ego_limit_m = self.wait_beyond_m * BETWEEN_ALLOWANCE
         if self.wait_beyond_m > 0:
@@ -274,7 +274,8 @@ class LeadVehicle:
             self._capped = False
 
     def _allowance_m(self, t: float, v_ego: float) -> float:
-        """How far the ego may fall behind before the lead waits for it [m] (ALLOWANCE_S)."""
+        """How far the ego may fall behind before the lead waits for it [m] (ALLOWANCE_S); updates the ego's
+        recent top speed with its speed ``v_ego`` at time ``t``."""
         t_last, v_top = self._ego_top_speed
         v_top = max(v_ego, v_top - ALLOWANCE_SPEED_DECAY_MPS2 * (t - t_last))
         self._ego_top_speed = (t, v_top)
