@@ -11,7 +11,10 @@ experiment phase):
   waited for;
 - ``following_share``: share of the ego's states with a vehicle ahead on its path within ``FOLLOW_M``
   (moving or queued behind it); ``lead_leader_share``: share in which that vehicle is the lead car;
-  ``cut_ins``: other vehicles that came between the lead and the ego;
+  ``cut_ins``: other vehicles that came between the lead and the ego; ``lead_paced_share``: share in which
+  the ego set the lead's pace (``cosim.phases.lead``: it waited, or drove below its lane's limit so that the
+  ego kept up): there the gap the ego keeps is partly the lead's doing, not the driver's, so an analysis of
+  time gaps can leave those samples out (timegap.csv's ``lead_paced``);
 - ``collisions`` (any vehicle), ``ego_collisions``, ``teleports`` and ``teleport_share`` of the vehicles
   that departed;
 - ``ego_off_road`` (times the ego left the road: ``cosim.sumo_bridge`` reports it when the ego's pose stays
@@ -76,6 +79,7 @@ class DriveHealth:
         self.speed: list[float] = []
         self.following: list[bool] = []
         self.lead_leader: list[bool] = []
+        self.lead_paced: list[bool] = []
         self.at_red: list[bool] = []
         self.off_road: list[bool] = []
         self._is_off_road = False
@@ -88,11 +92,12 @@ class DriveHealth:
         self._stall_logged = False
 
     def step(self, w: World, events: list[SumoEvent], percept=None, driver_mode: Callable[[], str] = lambda: "",
-             lead_is_leader: bool | None = None) -> list[SumoEvent]:  # fmt: skip
+             lead_is_leader: bool | None = None, lead_paced: bool = False) -> list[SumoEvent]:  # fmt: skip
         """Record the step. ``percept``: the ego driver's ``cosim.driver.Percept`` of the step (None without
         a MuJoCo ego); ``driver_mode``: what the driver is doing, asked only to name a stall;
         ``lead_is_leader``: whether the ego follows the lead (``LeadVehicle.lead_is_leader``: also with a car
-        beside the lead as its nearest leader; default: the percept's leader is the lead). Returns the
+        beside the lead as its nearest leader; default: the percept's leader is the lead); ``lead_paced``:
+        whether the ego set the lead's pace this step (``LeadVehicle.paced``). Returns the
         events to add to the step's (an ``ego_stall`` once a standstill passes STALL_S)."""
         t = float(w.t_s)
         self.all_t.append(t)
@@ -118,6 +123,7 @@ class DriveHealth:
         self.speed.append(speed)
         self.following.append(leader is not None and percept.leader_gap_m <= FOLLOW_M)
         self.lead_leader.append(leader == LEAD_ID if lead_is_leader is None else lead_is_leader)
+        self.lead_paced.append(bool(lead_paced))
         self.at_red.append(red)
         self.off_road.append(self._is_off_road)
         stall = self._watch_stall(t, speed, red, percept, driver_mode)
@@ -186,6 +192,7 @@ class DriveHealth:
             "lead_leader_share": _share(np.asarray(self.lead_leader, dtype=bool)[m])
             if self.has_lead
             else None,
+            "lead_paced_share": _share(np.asarray(self.lead_paced, dtype=bool)[m]) if self.has_lead else None,
             "cut_ins": count["lead_cut_in"] if self.has_lead else None,
             "collisions": count["collision"],
             "ego_collisions": sum(1 for kind, with_ego in events if kind == "collision" and with_ego),

@@ -363,6 +363,8 @@ class Simulation:
 
     def _ego_write_back(self, sim) -> None:
         self.current.ego_log = self.ego.write_back(self.world)
+        if self.lead is not None and self.current.ego_log:  # the gap the ego keeps is partly the lead's doing
+            self.current.ego_log["lead_paced"] = self.lead.paced
 
     def _vanet_step(self, sim) -> None:
         self.vanet.begin(self.world, self.step_s)
@@ -420,6 +422,7 @@ class Simulation:
             percept,
             lambda: getattr(getattr(getattr(ego, "driver", None), "debug", None), "mode", ""),
             self.lead.lead_is_leader if self.lead is not None else None,
+            self.lead is not None and self.lead.paced,
         )
 
     def _log_step(self, sim) -> None:

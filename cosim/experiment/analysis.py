@@ -17,10 +17,12 @@ NO_LEADER_GAP_S = 9.99  # system B caps the time gap at 10 s; at the cap nobody 
 
 
 def timegap_columns(log: Log, start_s: float) -> dict[str, np.ndarray]:
-    """timegap.csv's columns from /adas/state, time relative to the protocol start."""
+    """timegap.csv's columns from /adas/state, time relative to the protocol start; with a lead car also
+    ``lead_paced`` (1: the ego set the lead's pace at that step, /ego/state), so that an analysis can leave
+    out the samples whose gap the lead shaped."""
     a = log.topics["/adas/state"]
     keep = a["t_s"] >= start_s - 1e-9
-    return {
+    cols = {
         "t_s": np.round(a["t_s"][keep] - start_s, 3),
         "phase": a["phase"][keep],
         "system": a["system"][keep],
@@ -28,6 +30,13 @@ def timegap_columns(log: Log, start_s: float) -> dict[str, np.ndarray]:
         "time_gap_displayed_s": np.asarray(a["time_gap_displayed_s"][keep], dtype=float),
         "warning": a["warning"][keep],
     }
+    e = log.topics.get("/ego/state", {})
+    if "lead_paced" in e:  # both topics have one message per step at the same time
+        paced = dict(zip(np.round(e["t_s"], 3).tolist(), e["lead_paced"].tolist(), strict=True))
+        cols["lead_paced"] = np.array(
+            [int(bool(paced.get(t))) for t in np.round(a["t_s"][keep], 3).tolist()], dtype=int
+        )
+    return cols
 
 
 def write_timegap_csv(cols: dict[str, np.ndarray], path: Path) -> None:
@@ -62,6 +71,7 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
         t0, t1 = cols["t_s"][m][0] + start_s, cols["t_s"][m][-1] + start_s
         tg = cols["time_gap_true_s"][m]
         measured = np.isfinite(tg) & (tg < NO_LEADER_GAP_S)  # a leader close enough for a time gap
+        free = measured & (cols["lead_paced"][m] == 0) if "lead_paced" in cols else None
         warn = cols["warning"][m]
         am = (a["t_s"] >= t0) & (a["t_s"] <= t1)
         gap, ls = a["gap_true_m"][am].astype(float), a["leader_speed_mps"][am].astype(float)
@@ -83,6 +93,8 @@ def phase_summary(log: Log, cols: dict[str, np.ndarray], start_s: float) -> list
             "phase": str(phase), "system": str(cols["system"][m][0]),
             "duration_s": round(float(cols["t_s"][m][-1] - cols["t_s"][m][0]), 1),
             "time_gap_mean_s": _r(np.mean(tg[measured])) if measured.any() else None,
+            # the same without the samples in which the ego set the lead's pace
+            "time_gap_mean_lead_free_s": _r(np.mean(tg[free])) if free is not None and free.any() else None,
             "time_gap_sd_s": _r(np.std(tg[measured])) if measured.any() else None,
             "share_below_2s": _r(np.mean(tg[measured] < 2.0)) if measured.any() else None,
             "share_below_1s": _r(np.mean(tg[measured] < 1.0)) if measured.any() else None,
@@ -114,6 +126,9 @@ def plot_timegap(cols: dict[str, np.ndarray], path: Path, title: str) -> None:
     if np.isfinite(shown).any():
         ax.plot(t, np.where(shown < NO_LEADER_GAP_S, shown, np.nan), color="tab:blue", lw=0.8, alpha=0.8,
                 label="time gap shown by system B")  # fmt: skip
+    if "lead_paced" in cols and cols["lead_paced"].any():  # where the gap is partly the lead's doing
+        ax.fill_between(t, 0, 0.04, where=cols["lead_paced"] == 1, color="tab:purple", alpha=0.6,
+                        transform=ax.get_xaxis_transform(), label="lead paced by the ego")  # fmt: skip
     for level, color in (("advisory", "gold"), ("warning", "tab:red")):
         on = cols["warning"] == level
         if on.any():
@@ -158,7 +173,7 @@ RESPONSE_PARAMETERS = {
 }  # fmt: skip
 RESPONSE_SWEEP = "configs/sweeps/driver_response.yaml"
 # per-phase numbers that follow from how the driver drives (the rest describe the traffic or the radio)
-DRIVER_DEPENDENT = ("time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
+DRIVER_DEPENDENT = ("time_gap_mean_s", "time_gap_mean_lead_free_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
                     "advisories", "hard_braking_events", "ego_collisions", "min_ttc_s")  # fmt: skip
 
 

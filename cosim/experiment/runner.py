@@ -113,6 +113,7 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
         ):  # the following task as the drive health sees it (a queue behind the leader counts)
             ph["following_share"] = rep["following_share"]
             ph["lead_leader_share"] = rep["lead_leader_share"]
+            ph["lead_paced_share"] = rep["lead_paced_share"]
     for p in order:  # a phase the protocol has but the log does not: no time-gap data at all
         if not any(ph["phase"] == p.name for ph in phases):
             phases.append({"phase": p.name, "system": p.system, "duration_s": 0.0, "health": None})
@@ -248,19 +249,22 @@ def across_participants(results: list[dict]) -> list[dict]:
     rows = []
     for system, phs in by_system.items():
         row = {"system": system, "n": len(phs)}
-        for key in ("time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
-                    "hard_braking_events", "ego_collisions", "min_ttc_s", "v2v_pdr_to_leader"):  # fmt: skip
+        for key in ("time_gap_mean_s", "time_gap_mean_lead_free_s", "time_gap_sd_s", "share_below_2s",
+                    "share_below_1s", "warnings", "hard_braking_events", "ego_collisions", "min_ttc_s",
+                    "v2v_pdr_to_leader", "lead_paced_share"):  # fmt: skip
             vals = [p[key] for p in phs if p.get(key) is not None]
             row[key] = round(sum(vals) / len(vals), 3) if vals else None
         rows.append(row)
     return rows
 
 
-_COLS = [("phase", "phase"), ("system", "system"), ("time_gap_mean_s", "mean TG [s]"), ("time_gap_sd_s", "SD [s]"),
+_COLS = [("phase", "phase"), ("system", "system"), ("time_gap_mean_s", "mean TG [s]"),
+         ("time_gap_mean_lead_free_s", "lead free [s]"), ("time_gap_sd_s", "SD [s]"),
          ("share_below_2s", "< 2 s"), ("share_below_1s", "< 1 s"), ("warnings", "warnings"),
          ("hard_braking_events", "hard brakes"), ("ego_collisions", "collisions"), ("min_ttc_s", "min TTC [s]"),
          ("v2v_pdr_to_leader", "PDR leader"),
-         ("following_share", "following"), ("lead_leader_share", "lead is leader")]  # fmt: skip
+         ("following_share", "following"), ("lead_leader_share", "lead is leader"),
+         ("lead_paced_share", "lead paced")]  # fmt: skip
 
 
 _HEALTH_COLS = ("distance [m]", "drive health")
@@ -290,7 +294,11 @@ def summary_markdown(summary: dict) -> str:
              f"{summary['wall_s']:.0f} s wall ({summary['jobs']} processes). V2V radio access (system B): "
              f"{summary.get('vanet_mac') or 'none'}.", "",
              "Time gap (TG) = ground truth to the vehicle ahead while following (TG < 10 s); warnings = onsets of "
-             "the red level (system B) or of the perceived 'keep distance' display (system A).", ""]  # fmt: skip
+             "the red level (system B) or of the perceived 'keep distance' display (system A). The lead car "
+             "waits for a participant who falls behind and is held back so that one keeps up "
+             "(cosim/phases/lead.py): *lead paced* is the share of the phase in which it was, where the gap is "
+             "partly the lead's doing; *lead free* is the mean TG without those samples (timegap.csv's "
+             "`lead_paced` column marks them).", ""]  # fmt: skip
     if summary.get("assumptions", {}).get("values"):
         lines += ["The system A and B rows rest on assumed driver responses, not measured ones: see "
                   "*Assumptions* at the end.", ""]  # fmt: skip
@@ -304,12 +312,13 @@ def summary_markdown(summary: dict) -> str:
             )
         lines.append("")
     lines += ["## Across participants (mean per system)", "",
-              "| system | n | mean TG [s] | SD [s] | < 2 s | < 1 s | warnings | hard brakes | collisions | min TTC [s] | PDR leader |",
-              "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+              "| system | n | mean TG [s] | lead free [s] | SD [s] | < 2 s | < 1 s | warnings | hard brakes | collisions | min TTC [s] | PDR leader | lead paced |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for row in summary["across"]:
-        lines.append(f"| {row['system']} | {row['n']} | " + " | ".join(_cell(row[k]) for k in (
-            "time_gap_mean_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
-            "hard_braking_events", "ego_collisions", "min_ttc_s", "v2v_pdr_to_leader")) + " |")  # fmt: skip
+        lines.append(f"| {row['system']} | {row['n']} | " + " | ".join(_cell(row.get(k)) for k in (
+            "time_gap_mean_s", "time_gap_mean_lead_free_s", "time_gap_sd_s", "share_below_2s", "share_below_1s",
+            "warnings", "hard_braking_events", "ego_collisions", "min_ttc_s", "v2v_pdr_to_leader",
+            "lead_paced_share")) + " |")  # fmt: skip
     if summary.get("assumptions"):
         lines += ["", *assumptions_markdown(summary["assumptions"])]
     return "\n".join(lines) + "\n"

@@ -63,7 +63,9 @@ EGO_STATE = _obj(
      "throttle": NUM, "brake": NUM, "steer": NUM, "physics_speed_mps": NUM, "path_offset_m": nullable(NUM),
      "leader_id": nullable(STR), "leader_gap_m": nullable(NUM), "tls_state": nullable(STR),
      "sign": nullable(STR), "sign_dist_m": nullable(NUM), "junction_conflict": BOOL,
-     "junction_gap_s": nullable(NUM), "driver_mode": STR},
+     "junction_gap_s": nullable(NUM), "driver_mode": STR,
+     # with a lead car: the ego set its pace this step (it waited or was held below its lane's limit)
+     "lead_paced": BOOL},
     ("t_s", "step", "id", "x_m", "y_m", "heading_deg", "speed_mps", "accel_mps2", "edge", "lane_index",
      "lane_pos_m", "lateral_offset_m", "on_road"),
     "The ego vehicle, one message per step (SUMO's view of it, plus the MuJoCo ego's controls and percept).",
@@ -158,8 +160,9 @@ HEALTH = _obj(
     "cosim.Health",
     {"t_s": NUM, "window_s": NUM, "ego_present_at_s": nullable(NUM), "ego_states": INT, "ego_distance_m": NUM,
      "longest_standstill_s": NUM, "longest_standstill_not_red_s": NUM, "stalls": INT,
-     "following_share": nullable(NUM), "lead_leader_share": nullable(NUM), "cut_ins": nullable(INT),
-     "collisions": INT, "ego_collisions": INT, "teleports": INT, "vehicles_departed": INT,
+     "following_share": nullable(NUM), "lead_leader_share": nullable(NUM),
+     "lead_paced_share": nullable(NUM), "cut_ins": nullable(INT), "collisions": INT, "ego_collisions": INT,
+     "teleports": INT, "vehicles_departed": INT,
      "teleport_share": NUM, "ego_off_road": INT, "off_road_s": NUM,
      "problems": {"type": "array", "items": {"type": STR}}, "status": string_enum("ok", "degraded")},
     description="The drive's health over the whole run: ego presence and distance, standstills, following, "

@@ -113,6 +113,8 @@ BETWEEN_MAX_CARS = 4  # the cars between the lead and the ego sent off, from the
 CUT_IN_ONCE_S = 60.0
 CROSSING_DEG = 45.0  # a vehicle heading this far off the ego's heading crosses its way [deg]
 STAND_MPS = 0.5  # the lead stands below this speed [m/s]
+# a speed cap within this of the lead's speed (or below it) is what holds the lead back [m/s]
+PACED_MARGIN_MPS = 0.5
 # the lead standing this long short of the lane its way goes on noses in when the car that would follow it
 # there is the ego or drives slower than LANE_FORCE_FOLLOWER_MPS (a queue) [s]
 LANE_FORCE_AFTER_S = 5.0
@@ -209,6 +211,9 @@ class LeadVehicle:
         self.emit = emit
         self.wait_beyond_m = wait_beyond_m
         self.waiting = False  # the lead slows down or stands for the ego
+        # the lead's pace is the ego's doing: it waits, or a speed cap for the ego (or a car between them) is
+        # what holds it back: the gap the ego keeps then is partly the lead's making
+        self.paced = False
         self.cut_ins = 0
         self.lead_is_leader = False  # the ego follows the lead this step (see _log_cut_in)
         self.gap_m = math.nan  # along the route, the lead's rear to the ego's front [m]
@@ -234,6 +239,7 @@ class LeadVehicle:
         self.lead_is_leader = False
         lead, ego = w.slot_of.get(LEAD_ID), w.slot_of.get(EGO_ID)
         if lead is None or ego is None:
+            self.waiting = self.paced = False
             return
         self.gap_m = self._gap(w, lead, ego)
         if self._rejoining and float(w.speed_mps[lead]) > STAND_MPS:  # back on its lane, driving
@@ -266,7 +272,10 @@ class LeadVehicle:
         ]
         self.waiting = bool(holds) or (self.wait_beyond_m > 0 and self.gap_m > ego_limit_m)
         cap = min(caps + holds) if caps or holds else math.inf
-        if cap < self.bridge.lane_speed_limit(LEAD_ID):
+        limit = self.bridge.lane_speed_limit(LEAD_ID)
+        # held back: the cap is what sets its speed (not a car ahead of it, a bend or its lane's limit)
+        self.paced = self.waiting or cap < min(limit, float(w.speed_mps[lead]) + PACED_MARGIN_MPS)
+        if cap < limit:
             self.bridge.cap_speed(LEAD_ID, cap)
             self._capped = True
         elif self._capped:
@@ -640,7 +649,7 @@ class LeadVehicle:
         if self.ego is not None:
             self.ego.lead_at_roadside = True
         self.let_past += 1
-        self.waiting = True
+        self.waiting = self.paced = True
         cars = len(self._between_since)
         self.emit(SumoEvent("lead_let_past", LEAD_ID, f"pulls over beside {lane} for {cars} car(s) between it "
                             f"and the ego ({self.gap_m:.0f} m)", self.gap_m))  # fmt: skip

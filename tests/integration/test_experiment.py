@@ -78,7 +78,7 @@ def test_summary_has_the_three_phases_per_participant(short_experiment):
     for pid in ("P1", "P2"):
         assert (out / pid / "timegap.png").stat().st_size > 10_000
         header = (out / pid / "timegap.csv").read_text().splitlines()[0]
-        assert header == "t_s,phase,system,time_gap_true_s,time_gap_displayed_s,warning"
+        assert header == "t_s,phase,system,time_gap_true_s,time_gap_displayed_s,warning,lead_paced"
     assert "Across participants" in (out / "summary.md").read_text()
 
 

@@ -22,7 +22,7 @@ def _health_sim(lead: bool = True):
     return sim
 
 
-def _step(sim, health, t, speed, leader=None, gap=20.0, events=()):
+def _step(sim, health, t, speed, leader=None, gap=20.0, events=(), lead_paced=False):
     w = sim.world
     w.step += 1
     w.t_s = t
@@ -34,7 +34,9 @@ def _step(sim, health, t, speed, leader=None, gap=20.0, events=()):
                                                       sign_kind=None),
                               driver=SimpleNamespace(debug=SimpleNamespace(mode="leader")))  # fmt: skip
     sim.events = list(events)
-    sim.events += health.step(w, sim.events, sim.ego.percept, lambda: sim.ego.driver.debug.mode)
+    sim.events += health.step(
+        w, sim.events, sim.ego.percept, lambda: sim.ego.driver.debug.mode, lead_paced=lead_paced
+    )
 
 
 def test_health_of_a_good_drive_is_ok_and_of_a_stalled_one_degraded():
@@ -163,3 +165,21 @@ def test_health_names_a_route_that_ran_out():
     assert not any(
         "end of its route" in p for p in health.report(0.0, 12.0)["problems"]
     )  # 119 and 19 m left then
+
+
+def test_health_reports_how_much_of_a_window_the_ego_set_the_leads_pace():
+    """The gap the ego keeps while the lead waits for it or is held back for it is partly the lead's doing:
+    the share of such states is reported per window (it degrades nothing: pacing is the lead's job), and only
+    with a lead car."""
+    sim = _health_sim()
+    health = DriveHealth(sim.config.ego, sim.step_s)
+    for k in range(1, 601):  # 60 s behind the lead, paced by the ego from 45 s on
+        _step(sim, health, k * 0.1, 10.0, LEAD_ID, lead_paced=k > 450)
+    assert health.report()["lead_paced_share"] == pytest.approx(0.25)
+    assert health.report(0.0, 45.0)["lead_paced_share"] == 0.0
+    assert health.report(45.05, 60.0)["lead_paced_share"] == 1.0
+    assert health.report()["status"] == "ok"
+    sim = _health_sim(lead=False)
+    health = DriveHealth(sim.config.ego, sim.step_s)
+    _step(sim, health, 0.1, 10.0, "scv1")
+    assert health.report()["lead_paced_share"] is None

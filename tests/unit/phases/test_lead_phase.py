@@ -175,6 +175,28 @@ def test_the_lead_lets_a_slow_ego_fall_behind_by_seconds_not_metres():
     assert not lead.waiting and sim.bridge.caps[-1] == pytest.approx(10.0 + (30.0 - 25.0) / 5.0)
 
 
+def test_the_lead_is_paced_by_the_ego_while_a_cap_for_it_holds_the_lead_back():
+    """Not waiting yet, the lead held at 11 m/s on a 13-m/s lane so that an ego at 10 m/s 25 m behind keeps
+    up: the ego sets its pace (the gap the ego keeps is partly the lead's doing, timegap.csv's lead_paced).
+    Behind a slower car (8 m/s) the same cap holds nothing back; an ego that keeps up by itself leaves the
+    lead free."""
+    for lead_speed, paced in ((11.0, True), (8.0, False)):
+        sim = fake_sim(gap_m=25.0, ego_speed=10.0)
+        sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = lead_speed
+        lead = _lead(sim)
+        lead.step(sim.world)
+        assert not lead.waiting and lead.paced == paced and sim.bridge.caps[-1] == pytest.approx(11.0)
+    sim = fake_sim(gap_m=20.0, ego_speed=12.0)  # cap 12 + (36 - 20) / 5 = 15.2 m/s, above the lane's 13
+    sim.world.speed_mps[sim.world.slot_of[LEAD_ID]] = 13.0
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert not lead.waiting and not lead.paced
+    sim = fake_sim(gap_m=80.0, ego_speed=6.0)  # waiting is pacing
+    lead = _lead(sim)
+    lead.step(sim.world)
+    assert lead.waiting and lead.paced
+
+
 def test_an_ego_braking_behind_the_lead_does_not_make_it_brake_too():
     """Reckoned at the ego's speed of the moment, the allowance would shrink as the ego brakes, the lead
     brake for it, and so on down. It follows the ego's recent top speed, which falls at
