@@ -345,6 +345,13 @@ class RoutePath:
         on = (dist2[near, k] <= half_width_m**2) & (s_at >= s_from) & (s_at <= s_to)
         return rows[on], s_at[on]
 
+    def junction_end(self, line_s: float, tolerance_m: float = 3.0) -> float:
+        """Arc position where the path leaves the junction whose line lies at ``line_s`` (the first junction
+        beginning at most ``tolerance_m`` before it); ``line_s`` when the path passes none there."""
+        begin, end = self._junction_spans
+        k = int(begin.searchsorted(line_s - tolerance_m))
+        return float(end[k]) if k < len(begin) and begin[k] <= line_s + tolerance_m else line_s
+
     def near_junction(self, s: np.ndarray, reach_m: float) -> np.ndarray:
         """Whether arc positions ``s`` lie within ``reach_m`` of a junction the path passes (between one
         edge's end and the next one's start); all True for a path built without its edges."""

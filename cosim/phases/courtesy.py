@@ -13,8 +13,8 @@ After ``COURTESY_AFTER_S`` first in line (the lead with the ego queued behind it
 nearest priority car approaching within ``COURTESY_LOOK_M`` that can still stop comfortably short of the
 conflict (``COURTESY_DECEL_MPS2``) is asked to: its speed is capped so that it stops ``STOP_SHORT_M``
 before it (at its line when that spot is inside the junction; a car already in one is not asked), and held
-there until the ego's front is past the line (both of the pair go through), or
-``COURTESY_HOLD_S`` at most. Standing, it is no foe
+there until the ego is through the junction, its rear past the junction's end on its path (both of the pair
+go through), or ``COURTESY_HOLD_S`` at most. Standing, it is no foe
 (``cosim.phases.ego.priority_gap_s``); other priority traffic still is. Each ask is a ``courtesy_yield``
 event. The wait and the ask are assumptions of this simulator (no measured rate): ``COURTESY_AFTER_S``
 lies between a typical wait for a gap (HCM 2010: 10-25 s of control delay for LOS B-C at a two-way stop)
@@ -67,11 +67,14 @@ class CourtesyYield:
         self._to_stop_m = 0.0  # how far the car may still drive before it stands [m]
         self._since = 0.0
         self._line_s = 0.0  # the yield line on the ego's path [m]
+        self._clear_s = 0.0  # ... and where the path leaves that junction [m]
         self._asked_at: set[tuple[str, float]] = set()  # (who, line) asked once each
 
-    def ask(self, w: World, vid: str, line_dist_m: float, line_s_m: float, junction: str) -> None:
+    def ask(self, w: World, vid: str, line_dist_m: float, line_s_m: float, junction: str,
+            clear_s_m: float | None = None) -> None:  # fmt: skip
         """``vid`` has waited first in line ``line_dist_m`` before the line at ``line_s_m`` on the ego's path
-        (``junction``): ask the nearest priority car that can still stop comfortably to stop short."""
+        (``junction``, which the path leaves at ``clear_s_m``; default: the line): ask the nearest priority
+        car that can still stop comfortably to stop short."""
         key = (vid, round(line_s_m))
         if self.car is not None or key in self._asked_at:
             return
@@ -95,17 +98,21 @@ class CourtesyYield:
             return
         self._asked_at.add(key)
         self.car, self._since, self._line_s = best[0], w.t_s, line_s_m
+        self._clear_s = line_s_m if clear_s_m is None else max(line_s_m, clear_s_m)
         self._to_stop_m = best[2]
         self.emit(SumoEvent("courtesy_yield", self.car, f"stops for the {vid} at {junction}", best[1]))
         self.hold(w, None)
 
-    def hold(self, w: World, ego_front_s_m: float | None) -> None:
-        """Keep the car stopping short of the conflict; let it go once the ego is past the line, after
-        COURTESY_HOLD_S, or when it has left the simulation."""
+    def hold(self, w: World, ego_front_s_m: float | None, ego_length_m: float = 0.0) -> None:
+        """Keep the car stopping short of the conflict; let it go once the ego (front at ``ego_front_s_m``,
+        ``ego_length_m`` long) is through the junction, after COURTESY_HOLD_S, or when it has left the
+        simulation. Let go as soon as the ego's front passed the line, the car pulled out into the ego turning
+        left in the junction behind the lead (Krems 327615515, make experiment P3 system_B, with the one-way
+        merge spread)."""
         if self.car is None:
             return
         slot = w.slot_of.get(self.car)
-        passed = ego_front_s_m is not None and ego_front_s_m > self._line_s
+        passed = ego_front_s_m is not None and ego_front_s_m - ego_length_m > self._clear_s
         if slot is None or passed or w.t_s - self._since >= COURTESY_HOLD_S:
             if slot is not None:
                 self.bridge.cap_speed(self.car, None)

@@ -335,7 +335,7 @@ class EgoController:
         self._check_red_light(tls)
         if tls and tls[2] < 300.0 and _TLS.get(tls[3]):
             kw.update(tls_state=_TLS[tls[3]], tls_dist_m=max(0.0, tls[2]), tls_id=f"{tls[0]}:{tls[1]}")
-        self.courtesy.hold(w, s_front)
+        self.courtesy.hold(w, s_front, self.car.params.length_m)
         kw.update(self._yield_line(w, s_front, tls))
         self._ask_courtesy(w, s_front, st.speed_mps, kw)
         adas = displays
@@ -736,7 +736,8 @@ class EgoController:
         if self._first_at_line is None or self._first_at_line[0] != kw["sign_id"]:
             self._first_at_line = (kw["sign_id"], w.t_s)
         elif w.t_s - self._first_at_line[1] >= COURTESY_AFTER_S:
-            self.courtesy.ask(w, EGO_ID, dist, s_front + dist, kw["sign_id"])
+            line_s = s_front + dist
+            self.courtesy.ask(w, EGO_ID, dist, line_s, kw["sign_id"], self.path.junction_end(line_s))
 
     def _route_changed(self, first: int) -> None:
         """The route's edges from index ``first`` on are new (extended, or a way round a stalled queue):

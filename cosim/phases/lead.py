@@ -528,7 +528,7 @@ class LeadVehicle:
             and self._ego_queued_behind()
         ):
             line_s = self._lead_s + float(w.length_m[w.slot_of[LEAD_ID]]) + dist
-            courtesy.ask(w, LEAD_ID, dist, line_s, "its line")
+            courtesy.ask(w, LEAD_ID, dist, line_s, "its line", self.ego.path.junction_end(line_s))
         stopping_for = (courtesy.car,) if courtesy is not None else ()
         if (
             self._ego_queued_behind()

@@ -186,3 +186,10 @@ def test_where_a_path_passes_over_its_own_earlier_stretch():
     a, b = spans[0]
     assert 494.0 <= a <= 496.0 and 504.0 <= b <= 506.0, spans  # within 5 m of (100, 0) on the last leg
     assert RoutePath([(0.0, 0.0), (300.0, 0.0)]).passes_near_itself(5.0, 60.0) == []
+
+
+def test_the_end_of_the_junction_at_a_line():
+    path = RoutePath([(0.0, 0.0), (0.0, 130.0)], edge_lanes=[(0.0, 100.0, "a", 1), (110.0, 130.0, "b", 0)])
+    assert path.junction_end(100.0) == 110.0  # the line at the edge's end: the junction runs to 110 m
+    assert path.junction_end(98.5) == 110.0  # a line a little before the lane's end
+    assert path.junction_end(50.0) == 50.0  # no junction there

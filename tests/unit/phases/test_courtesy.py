@@ -106,3 +106,17 @@ def test_a_car_asked_stops_at_its_line_when_the_spot_is_in_the_junction_and_one_
     # it stops at its line: 43 m less the spare, less the 1.2 m it drives in the step it is asked in
     to_line = 43.0 - LINE_SPARE_M - 12.0 * 0.1
     assert bridge.caps["wide"] == pytest.approx(math.sqrt(2.0 * COURTESY_DECEL_MPS2 * to_line))
+
+
+def test_the_car_is_held_until_the_ego_is_through_the_junction_not_only_past_its_line():
+    """Let go as the ego's front passed the line, the car pulled out into the ego turning left in the
+    junction behind the lead (Krems 327615515, make experiment P3 system_B): it stands until the ego's rear
+    is past the junction's end on its path."""
+    w, bridge, _, courtesy = _setup({"c": (60.0, 10.0, False)})
+    courtesy.ask(w, EGO_ID, 1.0, 100.0, "J", 112.0)  # the path leaves the junction 12 m past the line
+    courtesy.hold(w, 105.0, 4.5)  # front in the junction
+    assert courtesy.car == "c"
+    courtesy.hold(w, 115.0, 4.5)  # front out, rear still in it
+    assert courtesy.car == "c" and bridge.caps["c"] is not None
+    courtesy.hold(w, 116.6, 4.5)  # through
+    assert courtesy.car is None and bridge.caps["c"] is None
