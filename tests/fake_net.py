@@ -53,6 +53,9 @@ class Lane:
     def getSpeed(self):
         return 13.89
 
+    def getWidth(self):
+        return 3.2
+
     def allows(self, vclass):
         return True
 
@@ -199,6 +202,13 @@ class Net:
 
     def getEdge(self, eid):
         return self.edges[eid]
+
+    def getNodes(self):
+        nodes = {}
+        for e in self.edges.values():
+            nodes.setdefault(e.from_node.nid, e.from_node)
+            nodes.setdefault(e.node.nid, e.node)
+        return list(nodes.values())
 
     def getEdges(self):
         return list(self.edges.values())

@@ -477,6 +477,78 @@ def stranded_lane_connections(net) -> list[str]:
     return lines
 
 
+# a one-way road that joins a two-way road at less than this angle runs into it beside its lanes: a merge [deg]
+SHALLOW_MERGE_DEG = 30.0
+# ... and it needs a spread when its lane ends closer to the opposite direction's lane than two cars need
+# side by side (APPROACH_CLEARANCE_M, below): only then do its cars meet that direction's, and
+# geometric_prohibitions makes it yield to both directions. Krems 38566227 ends 1.94 m from it, 24746413#1
+# 2.06 m; Monaco 25103757 2.27 m (0.93 m off the lane it joins), which, spread, kept netconvert's stop
+# lines at 273246852 moving back round after round (test_real_maps)
+
+
+def _end(shape) -> tuple[float, float, float, float]:
+    """(x, y, unit direction x, y) of a lane shape's last point."""
+    (x0, y0), (x1, y1) = shape[-2], shape[-1]
+    n = math.hypot(x1 - x0, y1 - y0) or 1.0
+    return x1, y1, (x1 - x0) / n, (y1 - y0) / n
+
+
+def oneway_merge_spreads(net) -> tuple[list[str], list[str]]:
+    """``<edge spreadType="right">`` lines for one-way roads whose lanes end between the two directions of a
+    two-way road they join at a shallow angle, and ``<delete>`` lines for their turns back the way they came.
+
+    netconvert centres a one-way road's lanes on its OSM line and puts each direction of a two-way road beside
+    its line, so where a one-way road joins a two-way one at a shallow Y, its lane ends on the two-way road's
+    centre line: as close to the opposite direction as to the lane it joins (Krems 456774382: 38566227 ends
+    1.1 m beyond the end of 38566228's eastbound lane, towards the westbound one, 2.2 m from its start). Its
+    movement then passes the opposite one within a car's width, ``geometric_prohibitions`` rightly makes it
+    yield to both directions, and in `make experiment` the ego stood 40 s at its give-way line for a stream
+    the other way; and the two roads' lanes lay on top of each other over the last metres, so a car on each,
+    side by side, touched (the ego and an SCV there, `make experiment` P4 system_B). Such a road is spread
+    when its lane ends within APPROACH_CLEARANCE_M of the opposite direction's lane. Spread to the kerb
+    side, as a two-way road's lanes are (netconvert's "right" is the kerb
+    side in either driving side), the lane ends on the one it joins, and netconvert widens the junction
+    over the merge. netconvert also offers such a road a "left" onto the opposite direction, a reversal of
+    177 deg: with the lane ending 2 m from the other direction's start it went as a U-turn
+    (``turnaround_deletions``); in the widened junction it would be a 6.5-m internal lane no car can turn
+    in, so it goes with the spread.
+    """
+    import shapely
+
+    spread = set()
+    for node in net.getNodes():
+        incoming = [e for e in node.getIncoming() if e.allows("passenger") and e.getFunction() != "internal"]
+        outgoing = [e for e in node.getOutgoing() if e.allows("passenger") and e.getFunction() != "internal"]
+        for edge in incoming:
+            if any(o.getToNode() == edge.getFromNode() for o in outgoing):
+                continue  # half of a two-way road: spread beside its line already
+            inner = edge.getLane(edge.getLaneNumber() - 1)
+            ex, ey, eux, euy = _end(inner.getShape())
+            for joined in incoming:
+                back = [o for o in outgoing if o.getToNode() == joined.getFromNode()]
+                if joined is edge or not back:
+                    continue  # not a two-way road
+                joined_inner = joined.getLane(joined.getLaneNumber() - 1)
+                ax, ay, ux, uy = _end(joined_inner.getShape())
+                if math.hypot(ex - ax, ey - ay) > inner.getWidth() + joined_inner.getWidth():
+                    continue  # the two lanes do not end side by side
+                if math.degrees(math.acos(max(-1.0, min(1.0, eux * ux + euy * uy)))) > SHALLOW_MERGE_DEG:
+                    continue
+                opposite = shapely.LineString(back[0].getLane(back[0].getLaneNumber() - 1).getShape())
+                if opposite.distance(shapely.Point(ex, ey)) < APPROACH_CLEARANCE_M:
+                    spread.add(edge)
+    edges = sorted(spread, key=lambda e: e.getID())
+    reversals = [
+        f"    <delete from={quoteattr(e.getID())} to={quoteattr(to.getID())} "
+        f'fromLane="{c.getFromLane().getIndex()}" toLane="{c.getToLane().getIndex()}"/>'
+        for e in edges
+        for to, conns in sorted(e.getOutgoing().items(), key=lambda kv: kv[0].getID())
+        if _reverses(e, to)
+        for c in conns
+    ]
+    return [f'    <edge id={quoteattr(e.getID())} spreadType="right"/>' for e in edges], reversals
+
+
 def crossing_merge_deletions(net_file: Path) -> tuple[list[str], list[tuple]]:
     """``<delete>`` lines for lanes of two roads that cross each other on their way into the same road.
 

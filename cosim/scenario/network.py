@@ -32,6 +32,7 @@ from cosim.scenario.conflicts import (
     geometric_prohibitions,
     internal_stop_fixes,
     looping_turn_deletions,
+    oneway_merge_spreads,
     overlapping_end_deletions,
     separated_shapes,
     sibling_change_bars,
@@ -832,24 +833,38 @@ def build_network(
     net1 = read_network(pass1, programs=True)
     if not [e for e in net1.getEdges() if e.allows("passenger")]:
         raise CosimError(f"{osm.path} has no drivable road after conversion (no edge open to cars)")
-    joins = junction_joins(net1)
-    run_join = None
-    if joins:
-        join_file = workdir / "join.nod.xml"
-        join_file.write_text(
-            "<nodes>\n" + "".join(f'    <join nodes="{" ".join(g)}"/>\n' for g in joins) + "</nodes>\n"
-        )
-        joined = workdir / "joined.net.xml"
-        run_join = run_tool("netconvert", ["--sumo-net-file", str(pass1), "--node-files", str(join_file),
-                                        "--tls.default-type", TLS_TYPE, "--tls.layout", "opposites",
-                                        *common, "--offset.disable-normalization", "true",
-                                        "--output-file", str(joined)])  # fmt: skip
+    runs = [("pass1", run1)]
+
+    def repass(patches: dict[str, tuple[str, str, list[str]]], label: str, what: str) -> None:
+        """Pass 1 again with patch files, in place; ``patches``: netconvert option -> (file name, root
+        element, lines)."""
+        nonlocal net1
+        args = []
+        for option, (name, root, lines) in patches.items():
+            (workdir / name).write_text(f"<{root}>\n" + "\n".join(lines) + f"\n</{root}>\n")
+            args += [option, str(workdir / name)]
+        out = workdir / "repassed.net.xml"
+        run = run_tool("netconvert", ["--sumo-net-file", str(pass1), *args,
+                                      "--tls.default-type", TLS_TYPE, "--tls.layout", "opposites",
+                                      *common, "--offset.disable-normalization", "true",
+                                      "--output-file", str(out)])  # fmt: skip
         with (workdir / "netconvert.log").open("a") as fh:
-            fh.write("\n--- pass 1b (one crossing, one junction) ---\n" + run_join.log)
-        _check("netconvert (junction joins)", run_join, osm.path)
-        os.replace(joined, pass1)
-        join_file.unlink()
+            fh.write(f"\n--- {label} ({what}) ---\n" + run.log)
+        _check(f"netconvert ({what})", run, osm.path)
+        os.replace(out, pass1)
+        for name, _, _ in patches.values():
+            (workdir / name).unlink()
         net1 = read_network(pass1, programs=True)
+        runs.append((label, run))
+
+    joins = junction_joins(net1)
+    if joins:
+        repass({"--node-files": ("join.nod.xml", "nodes", [f'    <join nodes="{" ".join(g)}"/>' for g in joins])},
+               "pass1b", "one crossing, one junction")  # fmt: skip
+    spreads, reversals = oneway_merge_spreads(net1)
+    if spreads:
+        repass({"--edge-files": ("spread.edg.xml", "edges", spreads),
+                "--connection-files": ("spread.con.xml", "connections", reversals)}, "pass1c", "one-way merges")  # fmt: skip
     placements = place_signs(net1, osm)
     files, junction_kind, signed, tls_approaches = write_patches(net1, placements, behaviour, workdir)
     fix_log = workdir / "junction_fixes.txt"
@@ -871,7 +886,7 @@ def build_network(
     pass1.unlink()
     for f in (*files.values(), ends):
         f.unlink(missing_ok=True)
-    runs = [("pass1", run1), *([("pass1b", run_join)] if run_join else []), ("pass2", run2)]
+    runs.append(("pass2", run2))
     final_net = read_network(final)
     loop_ends, loop_run = add_turning_loops(final_net, final, workdir, common, osm.path)
     if loop_run is not None:
@@ -905,6 +920,7 @@ def build_network(
     write_signal_plans(final, plans)
     fixes["signal_plans_split"] = len(plans)
     fixes["turning_loops"] = len(loop_ends)
+    fixes["oneway_merges_spread"] = len(spreads)
     # last: netconvert drops <conflict> elements when it reads a network
     extents = conflict_extents(final, behaviour.min_gap_m)
     write_conflict_extents(final, extents)
@@ -912,6 +928,9 @@ def build_network(
     with fix_log.open("a") as fh:
         fh.write(
             "".join(
+                f"{line.strip()}: a one-way road's lanes to the kerb side of its line\n" for line in spreads
+            )
+            + "".join(
                 f"{n}: a turning loop beyond the road's cut end (the map has no loop)\n" for n in loop_ends
             )
             + "".join(

@@ -22,10 +22,11 @@ pytestmark = pytest.mark.own_process
 
 
 # seed 5: its route passes Krems cluster_206089614_71582005 twice, where SUMO's free mapping once took the
-# twin off the route (7935bc4); seed 8: its route changes lanes ~67 s in, which the pose check needs (seed 5's
-# did too until its legs were held to destinations with a way on, 4eceb41)
+# twin off the route (7935bc4); seed 9: its route changes lanes, which the pose check needs (seed 5's did too
+# until its legs were held to destinations with a way on, 4eceb41; seed 8's until the one-way merge spread
+# redrew the routes)
 @pytest.mark.slow
-@pytest.mark.parametrize("seed, changes_lanes", [(5, False), (8, True)])
+@pytest.mark.parametrize("seed, changes_lanes", [(5, False), (9, True)])
 def test_scripted_driver_300s_on_the_default_map(tmp_path, seed, changes_lanes):
     """No collision, never off the road, no red-light violation, lane keeping within 0.3 m on average; SUMO
     keeps the ego's planned route (its lights, right of way and foes depend on it)."""
