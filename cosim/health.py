@@ -12,8 +12,8 @@ experiment phase):
 - ``following_share``: share of the ego's states with a vehicle ahead on its path within ``FOLLOW_M``
   (moving or queued behind it); ``lead_leader_share``: share in which that vehicle is the lead car;
   ``cut_ins``: other vehicles that came between the lead and the ego; ``lead_paced_share``: share in which
-  the ego set the lead's pace (``cosim.phases.lead``: it waited, or drove below its lane's limit so that the
-  ego kept up): there the gap the ego keeps is partly the lead's doing, not the driver's, so an analysis of
+  the ego set the lead's pace (``cosim.phases.lead``: it waited, or a speed cap for the ego held it below
+  its lane's limit): there the gap the ego keeps is partly the lead's doing, not the driver's, so an analysis of
   time gaps can leave those samples out (timegap.csv's ``lead_paced``);
 - ``collisions`` (any vehicle), ``ego_collisions``, ``teleports`` and ``teleport_share`` of the vehicles
   that departed;

@@ -173,8 +173,9 @@ RESPONSE_PARAMETERS = {
 }  # fmt: skip
 RESPONSE_SWEEP = "configs/sweeps/driver_response.yaml"
 # per-phase numbers that follow from how the driver drives (the rest describe the traffic or the radio)
-DRIVER_DEPENDENT = ("time_gap_mean_s", "time_gap_mean_lead_free_s", "time_gap_sd_s", "share_below_2s", "share_below_1s", "warnings",
-                    "advisories", "hard_braking_events", "ego_collisions", "min_ttc_s")  # fmt: skip
+DRIVER_DEPENDENT = ("time_gap_mean_s", "time_gap_mean_lead_free_s", "time_gap_sd_s", "share_below_2s",
+                    "share_below_1s", "warnings", "advisories", "hard_braking_events", "ego_collisions",
+                    "min_ttc_s")  # fmt: skip
 
 
 def response_assumptions(exp) -> dict:
