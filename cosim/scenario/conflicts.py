@@ -505,10 +505,9 @@ def oneway_merge_spreads(net) -> tuple[list[str], list[str]]:
     yield to both directions, and in `make experiment` the ego stood 40 s at its give-way line for a stream
     the other way; and the two roads' lanes lay on top of each other over the last metres, so a car on each,
     side by side, touched (the ego and an SCV there, `make experiment` P4 system_B). Such a road is spread
-    when its lane ends within APPROACH_CLEARANCE_M of the opposite direction's lane. Spread to the kerb
-    side, as a two-way road's lanes are (netconvert's "right" is the kerb
-    side in either driving side), the lane ends on the one it joins, and netconvert widens the junction
-    over the merge. netconvert also offers such a road a "left" onto the opposite direction, a reversal of
+    when its lane ends within APPROACH_CLEARANCE_M of the opposite direction's lane. Spread to the kerb side,
+    as a two-way road's lanes are (netconvert's "right" is the kerb side in either driving side), the lane
+    ends on the one it joins, and netconvert widens the junction over the merge. netconvert also offers such a road a "left" onto the opposite direction, a reversal of
     177 deg: with the lane ending 2 m from the other direction's start it went as a U-turn
     (``turnaround_deletions``); in the widened junction it would be a 6.5-m internal lane no car can turn
     in, so it goes with the spread.
