@@ -37,10 +37,12 @@ from cosim.log import McapLog
 from cosim.outputs import StepBuffer, StepOutputs
 from cosim.runconfig import RunConfig
 from cosim.scenario import Scenario, build_scenario
+from cosim.scenario.build import cache_dir
 from cosim.seeds import stream
 from cosim.sumo_bridge.bridge import SumoBridge
 from cosim.sumo_bridge.network import read_network
 from cosim.sumo_bridge.tools import sumo_version
+from cosim.vanet.mapstore import store_dir
 from cosim.world import EGO_ID, LEAD_ID, SumoEvent, World
 
 PHASES = ("sumo", "vanet", "adas", "driver", "ego", "writeback", "log")
@@ -138,17 +140,18 @@ class Simulation:
         self._log_later: tuple | None = None  # (events, lights) of the step whose log waits for the radio
         try:
             if config.vanet is not None:  # first: a radio process starts up while SUMO loads
+                maps = store_dir(cache_dir())  # the visibility maps of earlier runs (cosim.vanet.mapstore)
                 if radio_process_default() if radio_process is None else radio_process:
                     from cosim.phases.vanet_process import VanetProcess
 
-                    self.vanet = VanetProcess(config.vanet, self.scenario.buildings_file,
-                                              stream(config.seed, "vanet"), log=out_dir is not None)  # fmt: skip
+                    self.vanet = VanetProcess(config.vanet, self.scenario.buildings_file, stream(config.seed, "vanet"),
+                                              log=out_dir is not None, map_store=maps)  # fmt: skip
                     self._radio_overlap = True
                 else:
                     from cosim.phases.vanet import VanetPhase
 
                     self.vanet = VanetPhase(config.vanet, self.buildings, stream(config.seed, "vanet"),
-                                            log=out_dir is not None)  # fmt: skip
+                                            log=out_dir is not None, map_store=maps)  # fmt: skip
             self.bridge = SumoBridge(self.scenario.sumocfg, seed=config.seed, step_s=self.step_s, gui=gui,
                                      extra_args=sumo_args)  # fmt: skip
             if self.out_dir is not None:

@@ -9,6 +9,7 @@ with the layer in a second process, which finishes the step while this one goes 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
@@ -50,9 +51,10 @@ def _logged_tx(tx: dict[str, np.ndarray], rx: dict[str, np.ndarray], mode: str) 
 
 
 class VanetPhase:
-    def __init__(self, params: VanetParams, buildings: Buildings, rng: np.random.Generator, *, log: bool):
-        """``log``: build the step's log messages (``/vanet/*``)."""
-        self.layer = VanetLayer(params, buildings, rng)
+    def __init__(self, params: VanetParams, buildings: Buildings, rng: np.random.Generator, *, log: bool,
+                 map_store: Path | None = None):  # fmt: skip
+        """``log``: build the step's log messages (``/vanet/*``); ``map_store``: see ``VanetLayer``."""
+        self.layer = VanetLayer(params, buildings, rng, map_store)
         self.log = log
         self.tx_log = params.tx_log
         self._done: tuple[VanetStepResult, dict[str, object]] | None = None
@@ -90,7 +92,7 @@ class VanetPhase:
         return vehicle_of_station(world, self.layer.station_id, station)
 
     def close(self) -> None:
-        pass
+        self.layer.close()
 
 
 def vehicle_of_station(world: World, station_ids: np.ndarray, station: int | None) -> str:

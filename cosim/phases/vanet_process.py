@@ -69,9 +69,8 @@ def portable_view(view: ObuView | None) -> ObuView | None:
 class VanetProcess:
     """``VanetPhase``'s interface (begin, finish, ego_obu, vehicle_of_station, close), run by a child."""
 
-    def __init__(
-        self, params: VanetParams, buildings_file: str | Path, rng: np.random.Generator, *, log: bool
-    ):
+    def __init__(self, params: VanetParams, buildings_file: str | Path, rng: np.random.Generator, *, log: bool,
+                 map_store: Path | None = None):  # fmt: skip
         self._proc: subprocess.Popen | None = start_child(
             "from cosim.phases.vanet_process import serve; serve()", replies=True
         )
@@ -79,7 +78,7 @@ class VanetProcess:
         self._got: dict[str, tuple] = {}  # replies read and not yet taken
         self._view: ObuView | None = None
         self._station_id = np.zeros(0, dtype=np.uint32)
-        self._send((params, str(buildings_file), rng, log))
+        self._send((params, str(buildings_file), rng, log, map_store))
 
     def begin(self, world: World, step_s: float) -> None:
         """Start the step on a copy of the snapshot; returns once the ego's OBU view of the step is here."""
@@ -142,12 +141,13 @@ def serve() -> None:
     try:
         from cosim.scenario.buildings import indexed_buildings
 
-        params, buildings_file, rng, log = pickle.load(stdin)
-        phase = VanetPhase(params, indexed_buildings(buildings_file), rng, log=log)
+        params, buildings_file, rng, log, map_store = pickle.load(stdin)
+        phase = VanetPhase(params, indexed_buildings(buildings_file), rng, log=log, map_store=map_store)
         while True:
             try:
                 world, step_s = pickle.load(stdin)
             except EOFError:  # the run is over
+                phase.close()
                 break
 
             def view_ready(world=world) -> None:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -44,6 +45,7 @@ from cosim.vanet.links import (  # noqa: F401 (re-exported: the outcome codes an
     Links,
     _Block,
 )
+from cosim.vanet.mapstore import MapStore
 from cosim.vanet.pathloss import (
     PATH_LOSS_MODELS,
     PathLoss,
@@ -206,8 +208,11 @@ class Aether:
         params: ChannelParams,
         buildings: Sequence[shapely.Polygon] | Buildings,
         rng: np.random.Generator | None = None,
+        map_store: Path | None = None,
     ):
-        """``rng`` draws the log-normal shadowing field (only when its sigma > 0; None: a fixed seed 0)."""
+        """``rng`` draws the log-normal shadowing field (only when its sigma > 0; None: a fixed seed 0);
+        ``map_store``: the directory of the visibility maps kept between runs (cosim.vanet.mapstore; None:
+        none); ``close`` adds this run's maps to it."""
         self.p = params
         self.rx = params.receiver
         self.buildings = buildings if isinstance(buildings, Buildings) else Buildings(buildings)
@@ -254,6 +259,10 @@ class Aether:
                 params.per_meter_db,
                 max_loss,
             )
+        self.map_store = None
+        if map_store is not None and isinstance(self.shadow, PolarShadowing):
+            self.map_store = MapStore(map_store, self.shadow)
+            self.map_store.load()
         # links beyond the communication range only matter as interference, and two-ray has nulls inside
         self._general = (
             self.link_range_m > self.comm_range_m
@@ -273,6 +282,11 @@ class Aether:
         self._d2_band = (self.comm_range_m**2 * (1.0 - 1e-3), self.comm_range_m**2 * (1.0 + 1e-3))
         self._d2_threshold = None  # exact float32 threshold, found on first use (False: use the band)
         self._scratch = _Scratch()
+
+    def close(self) -> None:
+        """The end of the run: its visibility maps join the store (``map_store``)."""
+        if self.map_store is not None:
+            self.map_store.save()
 
     def evaluate(
         self,

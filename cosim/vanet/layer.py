@@ -37,6 +37,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -161,11 +162,13 @@ def _empty(spec: dict) -> dict[str, np.ndarray]:
 class VanetLayer:
     """CAM -> SOTDMA -> aether -> OBU for every station, one base step per call."""
 
-    def __init__(self, params: VanetParams, buildings: Sequence[shapely.Polygon], rng: np.random.Generator):
+    def __init__(self, params: VanetParams, buildings: Sequence[shapely.Polygon], rng: np.random.Generator,
+                 map_store: Path | None = None):  # fmt: skip
+        """``map_store``: the visibility maps kept between runs (``Aether``; None: none)."""
         self.params = params
         self.rng = rng
         # the shadowing field has its own stream (spawned: the MAC's draws stay as they were)
-        self.aether = Aether(params.channel, buildings, rng=rng.spawn(1)[0])
+        self.aether = Aether(params.channel, buildings, rng=rng.spawn(1)[0], map_store=map_store)
         self.frame_us, self.slot_us, self.n_slots = params.sotdma.frame_layout(params.cam.max_size_bytes)
         self.frame_ms = self.frame_us // 1000
         self.cam = CamGenerator(params.cam, 1)
@@ -623,6 +626,9 @@ class VanetLayer:
             yaw_rate_dps=float(self.cam.yaw_rate_dps[s]),
         )
         return ObuView(self.records, self.obu.heard(s), self._now_us, own, self.params.obu, self.frame_us, s)
+
+    def close(self) -> None:
+        self.aether.close()
 
     def station_id_of(self, slot: int) -> int:
         """Current station id of a World slot (0 = no station)."""

@@ -19,8 +19,11 @@ geometry, so the cache never changes results; it is flushed when it exceeds ``po
 
 from __future__ import annotations
 
+import hashlib
 import math
 import os
+from functools import cached_property
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -285,6 +288,50 @@ class PolarShadowing:
         self._row_of = {}
         self.n_rows = 0
         self.flushes += 1
+
+    # -- maps kept between runs (cosim.vanet.mapstore) -------------------------------------------------------
+    @property
+    def map_fields(self) -> tuple[str, ...]:
+        """The per-map arrays of the pool besides the ray origin (``rep_xy``) and inside count (``n0``)."""
+        return ("depth2",) if self.model == "los" else ("cross_d", "saturated")
+
+    @cached_property
+    def map_digest(self) -> str:
+        """What the maps depend on: the footprints' edges, the model and its parameters, and this module's
+        code (any change of it makes a new digest, so maps built by other code are never taken)."""
+        h = hashlib.sha256(Path(__file__).read_bytes())
+        h.update(repr((self.model, self.range_m, self.lattice_m, self.n_bins, self.k)).encode())
+        for a in (self.b.ex0, self.b.ey0, self.b.ex1, self.b.ey1):
+            h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+        return h.hexdigest()[:24]
+
+    def map_arrays(self) -> dict[str, np.ndarray]:
+        """The maps in the pool, in key order: ``key`` (int64) and the pool's arrays of those rows."""
+        keys = np.fromiter(self._row_of.keys(), dtype=np.int64, count=len(self._row_of))
+        rows = np.fromiter(self._row_of.values(), dtype=np.int64, count=len(self._row_of))
+        order = np.argsort(keys)
+        keys, rows = keys[order], rows[order]
+        return {
+            "key": keys,
+            **{name: getattr(self, name)[rows] for name in ("rep_xy", "n0", *self.map_fields)},
+        }
+
+    def add_maps(self, maps: dict[str, np.ndarray]) -> int:
+        """Take maps from ``map_arrays`` of a pool with the same ``map_digest`` as if built here (the same
+        bits: the maps depend only on the digest's inputs); keys in the pool already and maps beyond its
+        capacity are left out. Returns how many were taken."""
+        keys = np.asarray(maps["key"], dtype=np.int64)
+        new = np.flatnonzero([k not in self._row_of for k in keys.tolist()])[: self.max_rows - self.n_rows]
+        if new.size == 0:
+            return 0
+        if self.n_rows + new.size > self._rows_cap:
+            self._grow(min(self.max_rows, max(2 * self._rows_cap, self.n_rows + new.size)))
+        rows = np.arange(self.n_rows, self.n_rows + new.size)
+        for name in ("rep_xy", "n0", *self.map_fields):
+            getattr(self, name)[rows] = maps[name][new]
+        self._row_of.update(zip(keys[new].tolist(), rows.tolist(), strict=True))
+        self.n_rows += new.size
+        return int(new.size)
 
     def _edges_for_cell(self, cx: int, cy: int) -> np.ndarray:
         key = (cx, cy)
