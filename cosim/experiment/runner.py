@@ -122,10 +122,11 @@ def run_participant(exp: ExperimentConfig, index: int, base: Path, out_dir: Path
 
 
 # What every participant's process needs, imported once in the fork server instead of once per process
-# (~1.7 CPU s each: SUMO, MuJoCo, shapely, matplotlib's renderer)
+# (~1.7 CPU s each: SUMO, MuJoCo, shapely, matplotlib's renderer; numba ~0.4 s, imported by the radio's
+# line-of-sight kernels when it starts)
 _PRELOAD = ["cosim.experiment.runner", "cosim.sim", "cosim.phases.ego", "cosim.phases.adas", "cosim.phases.vanet",
             "cosim.phases.traffic", "cosim.phases.lead", "cosim.log.recorder", "cosim.log.reader",
-            "matplotlib.backends.backend_agg"]  # fmt: skip
+            "matplotlib.backends.backend_agg", "numba"]  # fmt: skip
 
 
 def _participant_context():
