@@ -1,10 +1,10 @@
 """Visibility maps kept between runs (issue 20).
 
-``PolarShadowing`` casts a visibility map for each lattice cell a vehicle transmits from (~0.4 ms each, 7 % of
-a participant of ``make experiment``). The maps depend only on the building footprints, the shadowing model's
-parameters and the code that casts them (``PolarShadowing.map_digest``), so a run may start with the maps
-an earlier run on the same town built: the results are the same to the bit (tests/integration/
-test_map_store.py), only the casting is saved.
+``PolarShadowing`` casts a visibility map for each lattice cell a vehicle transmits from (~0.2 ms each; ~16,000
+maps and 7 % of the CPU time of a participant of ``make experiment``). The maps depend only on the building
+footprints, the shadowing model's parameters and the code that casts them (``PolarShadowing.map_digest``),
+so a run may start with the maps an earlier run on the same town cast: the results are the same to the bit
+(tests/integration/test_visibility_store_runs.py), only the casting is saved.
 
 A store is one ``<digest>.npz`` per digest in the cache (``$COSIM_CACHE_DIR/visibility``; none with
 ``COSIM_NO_MAP_STORE`` set, e.g. to measure a cold run). A run reads it when its radio starts and, when it

@@ -321,7 +321,11 @@ class PolarShadowing:
         bits: the maps depend only on the digest's inputs); keys in the pool already and maps beyond its
         capacity are left out. Returns how many were taken."""
         keys = np.asarray(maps["key"], dtype=np.int64)
-        new = np.flatnonzero([k not in self._row_of for k in keys.tolist()])[: self.max_rows - self.n_rows]
+        room = self.max_rows - self.n_rows
+        if self._row_of:
+            new = np.flatnonzero([k not in self._row_of for k in keys.tolist()])[:room]
+        else:  # a pool just made: every stored key is new
+            new = np.arange(min(len(keys), room))
         if new.size == 0:
             return 0
         if self.n_rows + new.size > self._rows_cap:
