@@ -6,8 +6,8 @@ footprints, the shadowing model's parameters and the code that casts them (``Pol
 so a run may start with the maps an earlier run on the same town cast: the results are the same to the bit
 (tests/integration/test_visibility_store_runs.py), only the casting is saved.
 
-A store is one ``<digest>.npz`` per digest in the cache (``$COSIM_CACHE_DIR/visibility``; none with
-``COSIM_NO_MAP_STORE`` set, e.g. to measure a cold run). A run reads it when its radio starts and, when it
+A store is one ``<digest>.npz`` per digest in the cache (``$COSIM_CACHE_DIR/visibility``, or
+``$COSIM_MAP_STORE_DIR``; none with ``COSIM_NO_MAP_STORE`` set). A run reads it when its radio starts and, when it
 has built maps, merges them in when it ends: under a file lock, re-read first (runs beside it may have
 added theirs), written to a temporary file and renamed over the old one, so a reader never sees half a
 store and no run's maps are lost to another's. A store holds at most STORE_MAX_MB (this run's new maps
@@ -34,8 +34,11 @@ LOCK_TIMEOUT_S = 120.0  # another run merging its maps: wait this long, then lea
 
 
 def store_dir(cache_root: Path) -> Path | None:
-    """The stores' directory in the cache, or None when ``COSIM_NO_MAP_STORE`` is set."""
-    return None if os.environ.get("COSIM_NO_MAP_STORE") else Path(cache_root) / "visibility"
+    """The stores' directory: ``visibility`` in the cache, or ``$COSIM_MAP_STORE_DIR``; None when
+    ``COSIM_NO_MAP_STORE`` is set."""
+    if os.environ.get("COSIM_NO_MAP_STORE"):
+        return None
+    return Path(os.environ.get("COSIM_MAP_STORE_DIR") or Path(cache_root) / "visibility")
 
 
 def _warn(msg: str) -> None:

@@ -124,7 +124,10 @@ def test_the_directory_keeps_the_stores_used_last(tmp_path, monkeypatch):
     assert MapStore(tmp_path, _pool(bins=256)).load() == 0  # the oldest went
 
 
-def test_no_store_when_switched_off(tmp_path, monkeypatch):
+def test_the_store_directory_and_no_store_when_switched_off(tmp_path, monkeypatch):
+    monkeypatch.delenv("COSIM_MAP_STORE_DIR", raising=False)
     assert store_dir(tmp_path) == tmp_path / "visibility"
+    monkeypatch.setenv("COSIM_MAP_STORE_DIR", str(tmp_path / "elsewhere"))
+    assert store_dir(tmp_path) == tmp_path / "elsewhere"
     monkeypatch.setenv("COSIM_NO_MAP_STORE", "1")
     assert store_dir(tmp_path) is None
