@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+import time
 import zipfile
 from pathlib import Path
 
@@ -125,13 +126,18 @@ class MapStore:
             raise
 
     def _evict(self) -> None:
-        """Keep the STORE_MAX_FILES stores used last (a store in use by a run is read whole at its start)."""
-        stores = []
+        """Keep the STORE_MAX_FILES stores used last (a store in use by a run is read whole at its start), and
+        remove temporary files a killed run left (an hour old: none is being written then)."""
+        stores, now = [], time.time()
         for p in self.root.glob("*.npz"):
             try:
-                stores.append((p.stat().st_mtime, p))
+                used = p.stat().st_mtime
             except OSError:
                 continue
+            if not p.name.startswith("."):
+                stores.append((used, p))
+            elif now - used > 3600.0:
+                p.unlink(missing_ok=True)
         for _, p in sorted(stores, reverse=True)[STORE_MAX_FILES:]:
             p.unlink(missing_ok=True)
             p.with_suffix(".lock").unlink(missing_ok=True)

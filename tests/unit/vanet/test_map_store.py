@@ -4,6 +4,9 @@ replaced, never trusted."""
 
 from __future__ import annotations
 
+import os
+import time
+
 import numpy as np
 import pytest
 
@@ -122,6 +125,19 @@ def test_the_directory_keeps_the_stores_used_last(tmp_path, monkeypatch):
         MapStore(tmp_path, po).save()
     assert len(list(tmp_path.glob("*.npz"))) == 2
     assert MapStore(tmp_path, _pool(bins=256)).load() == 0  # the oldest went
+
+
+def test_a_killed_runs_temporary_file_is_neither_a_store_nor_kept(tmp_path):
+    left = tmp_path / ".visibility-killed.npz"
+    left.write_bytes(b"half a store")
+    writing = tmp_path / ".visibility-now.npz"  # another run writing its store right now
+    writing.write_bytes(b"")
+    os.utime(left, (time.time() - 7200, time.time() - 7200))
+    po = _pool()
+    _losses(po, TX[:2])
+    MapStore(tmp_path, po).save()
+    assert not left.exists() and writing.exists()
+    assert [p.name for p in tmp_path.glob("[!.]*.npz")] == [f"{po.map_digest}.npz"]
 
 
 def test_the_store_directory_and_no_store_when_switched_off(tmp_path, monkeypatch):
