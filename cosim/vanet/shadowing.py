@@ -247,8 +247,12 @@ class PolarShadowing:
         self._cell_touched: dict[int, bool] = {}
         self._scratch = _Scratch()
         self.n_rows = 0
-        self.builds = 0  # maps built so far (diagnostics)
+        self.builds = 0  # maps cast so far (diagnostics)
         self.flushes = 0
+        # maps cast by earlier runs, taken on demand (cosim.vanet.mapstore.MapStore.fetch; None: none)
+        self.source = None
+        self.taken = 0  # maps taken from the source so far
+        self.cast_keys: set[int] = set()  # keys of the maps this pool cast (what a store does not have)
         self._rows_cap = 0
         self._grow(min(self.max_rows, 4096))
         # edge buckets: for a cell of size C, the edges within range of some point of the cell
@@ -305,37 +309,16 @@ class PolarShadowing:
             h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
         return h.hexdigest()[:24]
 
-    def map_arrays(self) -> dict[str, np.ndarray]:
-        """The maps in the pool, in key order: ``key`` (int64) and the pool's arrays of those rows."""
-        keys = np.fromiter(self._row_of.keys(), dtype=np.int64, count=len(self._row_of))
-        rows = np.fromiter(self._row_of.values(), dtype=np.int64, count=len(self._row_of))
-        order = np.argsort(keys)
-        keys, rows = keys[order], rows[order]
+    def map_arrays(self, keys=None) -> dict[str, np.ndarray]:
+        """Maps in the pool, in key order: ``key`` (int64) and the pool's arrays of those rows; ``keys``:
+        only those of them still in the pool (None: all)."""
+        keys = self._row_of.keys() if keys is None else [k for k in keys if k in self._row_of]
+        keys = np.sort(np.fromiter(keys, dtype=np.int64, count=len(keys)))
+        rows = np.fromiter((self._row_of[k] for k in keys.tolist()), dtype=np.int64, count=len(keys))
         return {
             "key": keys,
             **{name: getattr(self, name)[rows] for name in ("rep_xy", "n0", *self.map_fields)},
         }
-
-    def add_maps(self, maps: dict[str, np.ndarray]) -> int:
-        """Take maps from ``map_arrays`` of a pool with the same ``map_digest`` as if built here (the same
-        bits: the maps depend only on the digest's inputs); keys in the pool already and maps beyond its
-        capacity are left out. Returns how many were taken."""
-        keys = np.asarray(maps["key"], dtype=np.int64)
-        room = self.max_rows - self.n_rows
-        if self._row_of:
-            new = np.flatnonzero([k not in self._row_of for k in keys.tolist()])[:room]
-        else:  # a pool just made: every stored key is new
-            new = np.arange(min(len(keys), room))
-        if new.size == 0:
-            return 0
-        if self.n_rows + new.size > self._rows_cap:
-            self._grow(min(self.max_rows, max(2 * self._rows_cap, self.n_rows + new.size)))
-        rows = np.arange(self.n_rows, self.n_rows + new.size)
-        for name in ("rep_xy", "n0", *self.map_fields):
-            getattr(self, name)[rows] = maps[name][new]
-        self._row_of.update(zip(keys[new].tolist(), rows.tolist(), strict=True))
-        self.n_rows += new.size
-        return int(new.size)
 
     def _edges_for_cell(self, cx: int, cy: int) -> np.ndarray:
         key = (cx, cy)
@@ -551,9 +534,22 @@ class PolarShadowing:
             new_rows = np.arange(self.n_rows, self.n_rows + n_new)
             self.n_rows += n_new
             self._row_of.update(zip(new_keys, new_rows.tolist(), strict=True))
-            xy, n0 = self._representatives(ij[[first[k] for k in new_keys]], (np.array(new_keys) & 1) == 1)
-            self._build(new_rows, xy, n0)
-            self.builds += n_new
+            cast = np.arange(n_new)
+            if self.source is not None:  # maps an earlier run cast: the same bits, taken instead
+                found, maps = self.source.fetch(new_keys)
+                if found.size:
+                    for name in ("rep_xy", "n0", *self.map_fields):
+                        getattr(self, name)[new_rows[found]] = maps[name]
+                    self.taken += found.size
+                    cast = np.setdiff1d(cast, found)
+            if cast.size:
+                cast_keys = np.array(new_keys)[cast]
+                xy, n0 = self._representatives(
+                    ij[[first[k] for k in cast_keys.tolist()]], (cast_keys & 1) == 1
+                )
+                self._build(new_rows[cast], xy, n0)
+                self.builds += cast.size
+                self.cast_keys.update(cast_keys.tolist())
             rows = [self._row_of[k] for k in keys]
         return np.array(rows, dtype=np.int64)
 
