@@ -296,8 +296,8 @@ class PolarShadowing:
     # -- maps kept between runs (cosim.vanet.mapstore) -------------------------------------------------------
     @property
     def map_fields(self) -> tuple[str, ...]:
-        """The per-map arrays of the pool besides the ray origin (``rep_xy``) and inside count (``n0``)."""
-        return ("depth2",) if self.model == "los" else ("cross_d", "saturated")
+        """The pool's arrays with a row per map: ray origin, inside count and the model's map."""
+        return ("rep_xy", "n0", *(("depth2",) if self.model == "los" else ("cross_d", "saturated")))
 
     @cached_property
     def map_digest(self) -> str:
@@ -317,7 +317,7 @@ class PolarShadowing:
         rows = np.fromiter((self._row_of[k] for k in keys.tolist()), dtype=np.int64, count=len(keys))
         return {
             "key": keys,
-            **{name: getattr(self, name)[rows] for name in ("rep_xy", "n0", *self.map_fields)},
+            **{name: getattr(self, name)[rows] for name in self.map_fields},
         }
 
     def _edges_for_cell(self, cx: int, cy: int) -> np.ndarray:
@@ -538,7 +538,7 @@ class PolarShadowing:
             if self.source is not None:  # maps an earlier run cast: the same bits, taken instead
                 found, maps = self.source.fetch(new_keys)
                 if found.size:
-                    for name in ("rep_xy", "n0", *self.map_fields):
+                    for name in self.map_fields:
                         getattr(self, name)[new_rows[found]] = maps[name]
                     self.taken += found.size
                     cast = np.setdiff1d(cast, found)
